@@ -1,0 +1,80 @@
+"""Finding clips on disk: every AMC under the inputs, each paired with its skeleton (ASF).
+
+An AMC pairs with the one ASF in its own folder, or with the ASF the user names
+(`--asf`). The pairing is decided here, once, so `inspect`, `compress` and `bench`
+agree on what a clip is.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from .formats.errors import MocapFormatError
+
+
+@dataclass(frozen=True)
+class ClipSource:
+    """One AMC file, its skeleton file, and the path it is stored under in an archive."""
+
+    amc: Path
+    asf: Path | None
+    relpath: str  # POSIX path relative to the input directory (or the bare file name)
+
+
+def _is_amc(name: str) -> bool:
+    return name.lower().endswith(".amc")
+
+
+def _is_asf(name: str) -> bool:
+    return name.lower().endswith(".asf")
+
+
+def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = None,
+               require_skeleton: bool = True) -> list[ClipSource]:
+    """All AMC files under `inputs` (directories are walked recursively), sorted by stored path.
+
+    Raises MocapFormatError for a missing input, a folder whose skeleton is
+    ambiguous, or (with `require_skeleton`) an AMC with no skeleton.
+    """
+    forced = Path(asf) if asf is not None else None
+    if forced is not None and not forced.is_file():
+        raise MocapFormatError("skeleton file not found", forced)
+    clips: list[ClipSource] = []
+    for item in inputs:
+        path = Path(item)
+        if path.is_dir():
+            for folder, dirs, files in os.walk(path):
+                dirs.sort()
+                for name in sorted(files):
+                    if _is_amc(name):
+                        amc = Path(folder) / name
+                        clips.append(ClipSource(amc, None, amc.relative_to(path).as_posix()))
+        elif path.is_file():
+            if not _is_amc(path.name):
+                if _is_asf(path.name):
+                    continue  # a skeleton named on the command line pairs by folder below
+                raise MocapFormatError("not an AMC file (expected the .amc extension)", path)
+            clips.append(ClipSource(path, None, path.name))
+        else:
+            raise MocapFormatError("no such file or directory", path)
+    seen: dict[str, Path] = {}
+    for clip in clips:
+        if clip.relpath in seen:
+            raise MocapFormatError(f"two inputs would be stored as '{clip.relpath}' (also {seen[clip.relpath]})", clip.amc)
+        seen[clip.relpath] = clip.amc
+    paired = [ClipSource(c.amc, forced or _skeleton_in_folder(c.amc, require_skeleton), c.relpath) for c in clips]
+    return sorted(paired, key=lambda c: c.relpath)
+
+
+def _skeleton_in_folder(amc: Path, required: bool) -> Path | None:
+    candidates = sorted(p for p in amc.parent.iterdir() if p.is_file() and _is_asf(p.name))
+    if len(candidates) == 1:
+        return candidates[0]
+    if not required:
+        return None
+    if not candidates:
+        raise MocapFormatError("no skeleton: no .asf file in its folder (pass --asf FILE)", amc)
+    names = ", ".join(p.name for p in candidates)
+    raise MocapFormatError(f"ambiguous skeleton: {len(candidates)} .asf files in its folder ({names}); pass --asf FILE", amc)

@@ -1,0 +1,40 @@
+"""`mcz inspect`: parse every clip under the inputs and summarise it (frames, dof, duration)."""
+
+from __future__ import annotations
+
+import os
+
+from .formats.amc import read_amc
+from .formats.asf import read_asf
+from .inputs import find_clips
+from .progress import progress
+
+
+def inspect_paths(paths, asf=None, fps: float = 120.0) -> dict:
+    """A JSON-ready report: one row per clip and the totals. Raises MocapFormatError on bad input."""
+    clips = find_clips(paths, asf=asf, require_skeleton=False)
+    skeletons = {}
+    rows = []
+    for clip in progress(clips, desc="inspect", unit="clip"):
+        skeleton = None
+        if clip.asf is not None:
+            if clip.asf not in skeletons:
+                skeletons[clip.asf] = read_asf(clip.asf)
+            skeleton = skeletons[clip.asf]
+        motion = read_amc(clip.amc, skeleton)
+        rows.append({
+            "path": clip.relpath,
+            "frames": motion.n_frames,
+            "dof": int(motion.values.shape[1]),
+            "seconds": motion.n_frames / fps,
+            "skeleton": None if clip.asf is None else os.fspath(clip.asf),
+            "bytes": os.path.getsize(clip.amc),
+        })
+    total = {
+        "clips": len(rows),
+        "frames": sum(r["frames"] for r in rows),
+        "seconds": sum(r["seconds"] for r in rows),
+        "skeletons": len(skeletons),
+        "bytes": sum(r["bytes"] for r in rows),
+    }
+    return {"fps": fps, "clips": rows, "total": total}
