@@ -1,0 +1,23 @@
+"""Write tests/golden/container_v{FORMAT_VERSION}.mcz. Run by hand, only when FORMAT_VERSION changes.
+
+Golden files are never regenerated: each stays in the repository so that every future reader is
+tested against archives written by every past writer. write_archive refuses to overwrite one.
+The contents are repeated literally in tests/test_mcz_container.py, which must not import this.
+"""
+
+from pathlib import Path
+
+from mocapzip.formats.mcz import FORMAT_VERSION, write_archive
+
+STREAMS = {
+    "meta.json": b'{"codec":"golden","clips":["07_01"]}',
+    "skeletons/07.asf": b":version 1.10\n:name VICON\n:units\n  mass 1.0\n",
+    "clips/07_01/coefficients": bytes(range(256)) * 3,
+    "clips/07_01/empty": b"",
+    "names/\u00fcnic\u00f8de \u2713": "payload \u2713".encode(),
+}
+
+if __name__ == "__main__":
+    path = Path(__file__).parent / "golden" / f"container_v{FORMAT_VERSION}.mcz"
+    size = write_archive(path, STREAMS, tool_version=f"golden-container-v{FORMAT_VERSION}")
+    print(f"wrote {path} ({size} bytes)")

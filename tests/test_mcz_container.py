@@ -1,0 +1,232 @@
+"""The .mcz container: round trip, random access, safe writing, determinism and damage detection."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import time
+import zlib
+from collections.abc import Mapping
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import zstandard
+
+from mocapzip.formats import MocapFormatError
+from mocapzip.formats import mcz
+from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader, write_archive
+
+GOLDEN_V1 = Path(__file__).parent / "golden" / "container_v1.mcz"
+# Written once by make_golden_container.py; repeated here literally so these bytes are checked forever.
+GOLDEN_V1_STREAMS = {
+    "meta.json": b'{"codec":"golden","clips":["07_01"]}',
+    "skeletons/07.asf": b":version 1.10\n:name VICON\n:units\n  mass 1.0\n",
+    "clips/07_01/coefficients": bytes(range(256)) * 3,
+    "clips/07_01/empty": b"",
+    "names/\u00fcnic\u00f8de \u2713": "payload \u2713".encode(),
+}
+
+
+def read_all(path) -> tuple[str, dict[str, bytes]]:
+    with ArchiveReader(path) as reader:
+        return reader.tool_version, {name: reader.read(name) for name in reader.names()}
+
+
+def assert_names_section(exc: ArchiveError) -> None:
+    assert exc.message.startswith(("header:", "index:", "stream '")), exc.message
+
+
+def test_round_trip_keeps_order_and_bytes(tmp_path):
+    big = random.Random(0).randbytes(3 << 20)  # the writer batches ~1 MiB per HDF5 write
+    streams = {"z": b"last", "a": bytearray(b"\x00\xff" * 10), "big": big, "empty": b"", "m": memoryview(b"view")}
+    size = write_archive(tmp_path / "a.mcz", streams, tool_version="1.2.3")
+    assert size == os.path.getsize(tmp_path / "a.mcz")
+    with ArchiveReader(tmp_path / "a.mcz") as reader:
+        assert (reader.format_version, reader.tool_version) == (FORMAT_VERSION, "1.2.3")
+        assert reader.names() == ["z", "a", "big", "empty", "m"]
+        assert {name: reader.read(name) for name in reader.names()} == {k: bytes(v) for k, v in streams.items()}
+        reader.verify()
+        with pytest.raises(KeyError):
+            reader.read("missing")
+
+
+def test_empty_archive(tmp_path):
+    write_archive(tmp_path / "e.mcz", {}, tool_version="1")
+    assert read_all(tmp_path / "e.mcz") == ("1", {})
+
+
+def test_golden_v1_still_decodes():
+    with ArchiveReader(GOLDEN_V1) as reader:
+        assert (reader.format_version, reader.tool_version) == (1, "golden-container-v1")
+        assert reader.names() == list(GOLDEN_V1_STREAMS)
+        assert {name: reader.read(name) for name in reader.names()} == GOLDEN_V1_STREAMS
+
+
+def test_read_touches_only_its_own_stream(tmp_path):
+    streams = {"a": b"A" * 50, "b": b"B" * 50, "c": b"C" * 50}
+    path = tmp_path / "r.mcz"
+    write_archive(path, streams, tool_version="1")
+    data = bytearray(path.read_bytes())
+    data[data.index(b"B" * 50) + 20] ^= 0xFF
+    path.write_bytes(data)
+    with ArchiveReader(path) as reader:
+        assert reader.read("a") == streams["a"] and reader.read("c") == streams["c"]
+        for check in (lambda: reader.read("b"), reader.verify):
+            with pytest.raises(ArchiveError, match="stream 'b': CRC32 mismatch"):
+                check()
+
+
+def test_refuses_to_overwrite(tmp_path):
+    path = tmp_path / "x.mcz"
+    path.write_bytes(b"precious")
+    with pytest.raises(FileExistsError, match="overwrite=True"):
+        write_archive(path, {"s": b"new"}, tool_version="1")
+    assert path.read_bytes() == b"precious"
+    write_archive(path, {"s": b"new"}, tool_version="1", overwrite=True)
+    assert read_all(path)[1] == {"s": b"new"}
+
+
+class ExplodingStreams(Mapping):
+    """A mapping whose iteration fails after two streams, once the temporary file exists."""
+
+    def __init__(self, exc: BaseException, directory: Path):
+        self.exc, self.directory = exc, directory
+
+    def __getitem__(self, name):
+        return name.encode()
+
+    def __iter__(self):
+        yield "one"
+        yield "two"
+        assert any(name.startswith(".x.mcz.tmp-") for name in os.listdir(self.directory))
+        raise self.exc
+
+    def __len__(self):
+        return 3
+
+
+@pytest.mark.parametrize("exc", [RuntimeError("boom"), KeyboardInterrupt()])
+@pytest.mark.parametrize("existing", [False, True])
+def test_failed_write_leaves_no_file(tmp_path, exc, existing):
+    path = tmp_path / "x.mcz"
+    if existing:
+        write_archive(path, {"old": b"old"}, tool_version="1")
+    with pytest.raises(type(exc)):
+        write_archive(path, ExplodingStreams(exc, tmp_path), tool_version="1", overwrite=True)
+    assert os.listdir(tmp_path) == (["x.mcz"] if existing else [])
+    if existing:
+        assert read_all(path)[1] == {"old": b"old"}
+
+
+def test_failed_rename_leaves_no_file(tmp_path, monkeypatch):
+    def refuse(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with pytest.raises(OSError, match="disk full"):
+        write_archive(tmp_path / "x.mcz", {"s": b"x" * 1000}, tool_version="1")
+    assert os.listdir(tmp_path) == []
+
+
+def test_deterministic(tmp_path):
+    streams = {f"clips/{i}": random.Random(i).randbytes(i * 10) for i in range(20)}
+    write_archive(tmp_path / "1.mcz", streams, tool_version="1")
+    time.sleep(1.1)  # HDF5 object timestamps have one-second resolution
+    write_archive(tmp_path / "2.mcz", streams, tool_version="1")
+    assert (tmp_path / "1.mcz").read_bytes() == (tmp_path / "2.mcz").read_bytes()
+
+
+def test_newer_format_version_refused(tmp_path):
+    path = tmp_path / "future.mcz"
+    write_archive(path, {"s": b"x"}, tool_version="9.9")
+    with h5py.File(path, "r+") as f:
+        f.attrs["format_version"] = f.attrs["format_version"] + 1
+    with pytest.raises(ArchiveError, match=f"format_version {FORMAT_VERSION + 1} is newer .*up to {FORMAT_VERSION}"):
+        ArchiveReader(path)
+
+
+def test_not_an_archive(tmp_path):
+    (tmp_path / "text.mcz").write_text("hello")
+    with h5py.File(tmp_path / "plain.h5", "w") as f:
+        f.attrs["magic"] = "HDF5 but something else"
+    for name in ("text.mcz", "plain.h5"):
+        with pytest.raises(MocapFormatError, match=f"{name}: header: "):
+            ArchiveReader(tmp_path / name)
+    with pytest.raises(FileNotFoundError):
+        ArchiveReader(tmp_path / "missing.mcz")
+
+
+@pytest.mark.parametrize(
+    "doc, problem",
+    [
+        ({"names": ["a", "a"], "offsets": [0, 1], "lengths": [1, 1], "crc32": [0, 0]}, "unique"),
+        ({"names": ["a", "b"], "offsets": [0, 2], "lengths": [1, 1], "crc32": [0, 0]}, "back to back"),
+        ({"names": ["a"], "offsets": [0], "lengths": [1], "crc32": [0]}, "need 1 bytes, payload has 2"),
+    ],
+)
+def test_checksummed_but_inconsistent_index_refused(tmp_path, doc, problem):
+    """A writer bug must not turn into wrong reads, even when every CRC matches."""
+    path = tmp_path / "bad.mcz"
+    write_archive(path, {"x": b"12"}, tool_version="1")
+    index = zstandard.ZstdCompressor().compress(json.dumps(doc).encode())
+    with h5py.File(path, "r+") as f:
+        del f["index"]
+        f["index"] = np.frombuffer(index, np.uint8)
+        f.attrs["index_crc32"] = np.uint32(zlib.crc32(index))
+        f.attrs["header_crc32"] = np.uint32(mcz._header_crc(FORMAT_VERSION, "1", zlib.crc32(index)))
+    with pytest.raises(ArchiveError, match=f"index: .*{problem}"):
+        ArchiveReader(path)
+
+
+def damage_outcomes(tmp_path, variants) -> dict[str, int]:
+    """Open each damaged copy of the golden file: it must fail cleanly or give back the exact contents."""
+    path = tmp_path / "damaged.mcz"
+    outcomes = {"detected": 0, "harmless": 0}
+    for data in variants:
+        path.write_bytes(data)
+        try:
+            result = read_all(path)
+        except ArchiveError as exc:
+            assert_names_section(exc)
+            outcomes["detected"] += 1
+        else:
+            assert result == ("golden-container-v1", GOLDEN_V1_STREAMS)
+            outcomes["harmless"] += 1
+    return outcomes
+
+
+def test_single_byte_damage_is_detected_or_harmless(tmp_path):
+    golden = GOLDEN_V1.read_bytes()
+    step = max(1, len(golden) // 2000)  # every byte of today's ~2 KB file; stays < 10 s if it grows
+
+    def flipped():
+        for position in range(0, len(golden), step):
+            for mask in (0x01, 0xFF):
+                data = bytearray(golden)
+                data[position] ^= mask
+                yield bytes(data)
+
+    outcomes = damage_outcomes(tmp_path, flipped())
+    print("single-byte damage:", outcomes)
+    assert outcomes["detected"] > outcomes["harmless"]
+
+
+def test_truncation_is_detected(tmp_path):
+    golden = GOLDEN_V1.read_bytes()
+    outcomes = damage_outcomes(tmp_path, (golden[:size] for size in range(len(golden))))
+    print("truncations:", outcomes)
+    assert outcomes["harmless"] == 0
+
+
+def test_overhead_is_small(tmp_path):
+    empty = write_archive(tmp_path / "0.mcz", {}, tool_version="0.1.0")
+    rng = random.Random(0)
+    streams = {f"clips/{i:04d}/coefficients": rng.randbytes(100) for i in range(1000)}
+    full = write_archive(tmp_path / "1000.mcz", streams, tool_version="0.1.0")
+    per_stream = (full - empty - 100 * 1000) / 1000
+    print(f"empty archive: {empty} bytes; index overhead: {per_stream:.1f} bytes/stream")
+    assert empty < 1500  # measured 1032 with h5py 3.16 / HDF5 2.0
+    assert per_stream < 15  # measured 6.9
