@@ -86,3 +86,134 @@ def inspect(paths, asf, fps, as_json):
     t = report["total"]
     click.echo(f"{'total: ' + str(t['clips']) + ' clips':<{width}}  {t['frames']:>7}  {'':>4}  {t['seconds']:>8.2f}  "
                f"{t['skeletons']} skeletons, {t['bytes'] / 1e6:.1f} MB of AMC")
+
+
+def _summary_line(s: dict) -> str:
+    return (f"{s['clips']} clips, {s['frames']} frames: {s['input_bytes']:,} -> {s['output_bytes']:,} bytes "
+            f"({s['input_bytes'] / s['output_bytes']:.1f}x, {s['bytes_per_frame']:.2f} bytes/frame), "
+            f"worst clip error {s['worst_error_cm']:.3f} cm, {s['frames'] / s['seconds']:,.0f} frames/s")
+
+
+@main.command()
+@click.argument("inputs", nargs=-1, required=True, type=click.Path())
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The .mcz archive to write.")
+@click.option("-e", "--error", "error_cm", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True,
+              help="Bound on each clip's mean joint-position error in cm, measured end to end.")
+@click.option("--lossless", is_flag=True, help="Every AMC value comes back as written (ignores --error).")
+@click.option("-r", "--representation", type=click.Choice(["channels", "positions", "aligned", "scaled", "normalised"]),
+              default="aligned", show_default=True, help="What the codec compresses (thesis section 3.2.1).")
+@click.option("-t", "--transform", type=click.Choice(["dct", "dwt", "none"]), default="dct", show_default=True,
+              help="Temporal transform of the PCA curves.")
+@click.option("--wavelet", default="db4", show_default=True, help="PyWavelets wavelet name for --transform dwt.")
+@click.option("--level", type=click.IntRange(min=1), default=None, help="DWT levels (default: as many as the clip allows).")
+@click.option("-c", "--classes", default="subject", show_default=True,
+              help="Clips sharing one PCA basis: single, subject (one per skeleton) or FILE.csv (clip path, class).")
+@click.option("--split", default=None, metavar="R,P,T",
+              help="Force the error split between root motion, PCA and temporal coding (shares of --error).")
+@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=120.0, show_default=True,
+              help="Frame rate stored in the archive (ASF/AMC do not carry one; CMU and HDM05 are 120).")
+@click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@reports_errors
+def compress(inputs, output, error_cm, lossless, representation, transform, wavelet, level, classes, split, asf,
+             fps, force, quiet, as_json):
+    """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
+
+    Each AMC pairs with the one ASF in its folder (or --asf). Inputs are kept; OUTPUT is
+    written atomically and never overwritten without -f.
+
+    \b
+    Examples:
+      mcz compress ../shared/data/cmu -o cmu.mcz                 every clip within 1 cm
+      mcz compress ../shared/data/cmu -o cmu.mcz -e 0.5 -c single one basis for all clips
+      mcz compress ../shared/data/cmu -o cmu.mcz --lossless      exact AMC values back
+    """
+    from .. import archive, progress
+
+    progress.QUIET = quiet
+    transform_config = {"id": transform}
+    if transform == "dwt":
+        transform_config.update(wavelet=wavelet, level=level)
+    settings = archive.Settings(error_cm=error_cm, representation=representation, transform=transform_config,
+                                classes=classes, split=_parse_split(split), fps=fps, lossless=lossless)
+    summary = archive.compress(inputs, output, settings, asf=asf, force=force)
+    if as_json:
+        click.echo(json.dumps(summary, indent=2))
+    elif not quiet:
+        click.echo(_summary_line(summary), err=True)
+
+
+def _parse_split(text):
+    if text is None:
+        return None
+    try:
+        parts = [float(p) for p in text.split(",")]
+    except ValueError:
+        parts = []
+    if len(parts) != 3 or min(parts) < 0 or sum(parts) <= 0:
+        raise click.BadParameter("expected three non-negative shares R,P,T, e.g. 0.2,0.4,0.4", param_hint="--split")
+    return parts
+
+
+@main.command()
+@click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), help="Folder for the ASF and AMC files.")
+@click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
+@click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
+@reports_errors
+def decompress(archive_path, output, patterns, force, quiet):
+    """Write the ASF and AMC files of ARCHIVE under OUTPUT at their original relative paths.
+
+    \b
+    Examples:
+      mcz decompress cmu.mcz -o out/
+      mcz decompress cmu.mcz -o out/ --clip '07/*'
+    """
+    from .. import archive, progress
+
+    progress.QUIET = quiet
+    summary = archive.decompress(archive_path, output, patterns, force=force)
+    if not quiet:
+        click.echo(f"{summary['clips']} clips, {summary['frames']} frames -> {summary['files']} files in {summary['output']}", err=True)
+
+
+@main.command()
+@click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@reports_errors
+def info(archive_path, as_json):
+    """Show what ARCHIVE holds: settings, classes, clips, frames, sizes and achieved errors."""
+    from .. import archive
+
+    report = archive.info(archive_path)
+    if as_json:
+        click.echo(json.dumps(report, indent=2))
+        return
+    s = report["settings"]
+    mode = "lossless" if s["lossless"] else f"error <= {s['error_cm']} cm, {s['representation']}, {s['transform']['id']}"
+    click.echo(f"{report['path']}: format {report['format_version']}, written by {report['tool']}")
+    click.echo(f"settings: {mode}, classes {s['classes']}, {s['fps']} fps")
+    click.echo(f"{len(report['clips'])} clips, {report['frames']} frames, {report['bytes']:,} bytes "
+               f"({report['bytes_per_frame']:.2f} bytes/frame), worst clip error {report['worst_error_cm']:.3f} cm")
+    click.echo("streams: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(report["stream_bytes"].items())))
+    for c in report["classes"]:
+        click.echo(f"  class {c['name']}: {c['clips']} clips, {c['frames']} frames, {c['components']} components")
+
+
+@main.command("test")
+@click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
+@reports_errors
+def test_archive(archive_path, quiet):
+    """Verify ARCHIVE without writing anything: every checksum, every clip decoded (like zstd -t)."""
+    from .. import archive, progress
+
+    progress.QUIET = quiet
+    with archive.Archive(archive_path) as opened:
+        opened.verify()
+        count = len(opened.clips)
+    if not quiet:
+        click.echo(f"{archive_path}: OK ({count} clips)", err=True)

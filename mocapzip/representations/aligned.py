@@ -1,0 +1,69 @@
+"""`aligned`: positions with the root's translation and heading (yaw) moved to a root track.
+
+Each frame is expressed in a frame that moves with the character: translated so
+the root is at the origin (the root position is then always zero and is not
+stored) and turned about the vertical (+Y, the Acclaim/CMU up axis) by minus
+the heading. The root track holds x, y, z (cm) and the heading (radians,
+unwrapped) per frame. Columns: as `positions` without the root position
+(CMU: 30 positions + 30 axes = 180).
+
+Heading. The thesis projects the root's x axis on the ground, which fails when
+that axis points up and flips by 180 degrees upside down. Here the heading is
+the twist about the vertical in a swing-twist split of the root rotation: the
+yaw closest to it (`rotations.angle_about`). Its reliability is
+c = cos^2(tilt / 2), tilt being how far the root's up axis is from vertical:
+1 upright, 0.5 lying down, 0 upside down, where the twist is undefined. Frames
+with c < MIN_HEADING_CONFIDENCE (tilt > 120 degrees: mid back flip, head
+spin) take a heading interpolated, over time, between the reliable frames
+around them, so a flip neither jumps nor spins; the unwrapped heading is
+continuous. The inverse uses the stored heading, whatever it is, so the round
+trip is exact by construction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kinematics import Pose, forward, inverse
+from ..rotations import angle_about, axis_rotation
+from ..skeleton import SkeletonModel
+from .base import Encoded
+from .positions import decode_markers, encode_markers
+
+MIN_HEADING_CONFIDENCE = 0.25
+
+
+def heading(root_rotations: np.ndarray) -> np.ndarray:
+    """(F,) unwrapped heading in radians of root rotations (F, 3, 3); see the module doc."""
+    twist = angle_about("y", root_rotations)
+    r = root_rotations
+    confidence = np.hypot(r[:, 2, 0] - r[:, 0, 2], r[:, 0, 0] + r[:, 2, 2]) / 2.0
+    reliable = np.flatnonzero(confidence >= MIN_HEADING_CONFIDENCE)
+    if reliable.size == 0:
+        return np.zeros(len(r))
+    return np.interp(np.arange(len(r)), reliable, np.unwrap(twist[reliable]))
+
+
+def to_character_frame(pose: Pose, root_track: np.ndarray) -> Pose:
+    """World pose -> pose relative to the root position and heading of `root_track`."""
+    undo = np.swapaxes(axis_rotation("y", root_track[:, 3]), -1, -2)
+    return Pose(pose.rotations @ undo[:, None], (pose.positions - root_track[:, None, :3]) @ undo)
+
+
+def position_columns(model: SkeletonModel) -> int:
+    """The leading columns of an aligned matrix that hold joint positions (3 per bone)."""
+    return 3 * (model.n_joints - 1)
+
+
+class Aligned:
+    name = "aligned"
+
+    def forward(self, model: SkeletonModel, motion) -> Encoded:
+        pose = forward(model, motion.values, motion)
+        root = np.column_stack([pose.positions[:, 0], heading(pose.rotations[:, 0])])
+        return Encoded(encode_markers(model, to_character_frame(pose, root), with_root=False), root)
+
+    def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
+        local = decode_markers(model, encoded.poses, with_root=False)
+        turn = axis_rotation("y", encoded.root[:, 3])
+        return inverse(model, local.rotations @ turn[:, None], encoded.root[:, :3], layout)

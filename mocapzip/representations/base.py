@@ -1,0 +1,35 @@
+"""What every representation returns and promises."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from ..skeleton import SkeletonModel
+
+
+@dataclass
+class Encoded:
+    """One clip in a representation: what the codec compresses.
+
+    `poses` is the (frames x M) matrix, one pose per row. `root` is the separate
+    root-motion track (frames x 4: x, y, z in cm and yaw in radians, unwrapped)
+    for the aligned family, None otherwise. `params` holds the few per-clip
+    values the inverse needs (e.g. the height scale), small enough to store as is.
+    """
+
+    poses: np.ndarray
+    root: np.ndarray | None = None
+    params: dict[str, float | np.ndarray] = field(default_factory=dict)
+
+
+class Representation(Protocol):
+    name: str
+
+    def forward(self, model: SkeletonModel, motion) -> Encoded:
+        """A Motion (AMC clip of `model`'s skeleton) -> Encoded."""
+
+    def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
+        """Encoded -> channel values (F, C) in `layout` (a Motion or ChannelLayout)."""

@@ -1,0 +1,30 @@
+"""`scaled`: aligned positions times one per-clip factor, universal height / skeleton height.
+
+Only the joint positions are scaled; the stored axes are unit vectors and the
+root track stays in cm. The factor is kept in params["scale"].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..skeleton import SkeletonModel
+from .aligned import Aligned, position_columns
+from .base import Encoded
+from .universal import UNIVERSAL_HEIGHT_CM, skeleton_height
+
+
+class Scaled:
+    name = "scaled"
+
+    def forward(self, model: SkeletonModel, motion) -> Encoded:
+        encoded = Aligned().forward(model, motion)
+        scale = float(UNIVERSAL_HEIGHT_CM / skeleton_height(model))
+        encoded.poses[:, : position_columns(model)] *= scale
+        encoded.params["scale"] = scale
+        return encoded
+
+    def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
+        poses = np.array(encoded.poses, dtype=np.float64)
+        poses[:, : position_columns(model)] /= encoded.params["scale"]
+        return Aligned().inverse(model, Encoded(poses, encoded.root), layout)

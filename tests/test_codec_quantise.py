@@ -1,0 +1,117 @@
+"""Tests for mocapzip.codec.quantise and the stage registry's handling of it."""
+
+import json
+
+import numpy as np
+import pytest
+
+from mocapzip.codec import get_stage
+from mocapzip.codec.quantise import UniformQuantiser, dequantise_from_bits, quantise_to_bits
+
+# Relative slack for float rounding exactly at bin edges.
+EPS = 1e-12
+
+
+@pytest.mark.parametrize("step", [1e-4, 0.1, 3.0])
+def test_error_bound_without_dead_zone(step):
+    x = np.random.default_rng(0).normal(scale=100 * step, size=10_000)
+    quantiser = UniformQuantiser(step)
+    q = quantiser.quantise(x)
+    assert q.dtype == np.int64
+    assert np.all(np.abs(x - quantiser.dequantise(q)) <= step / 2 * (1 + EPS))
+
+
+@pytest.mark.parametrize("dead_zone", [0.1, 0.3, 0.49])
+def test_dead_zone(dead_zone):
+    step = 0.5
+    x = np.random.default_rng(1).normal(scale=2.0, size=10_000)
+    quantiser = UniformQuantiser(step, dead_zone)
+    q = quantiser.quantise(x)
+    assert np.all(q[np.abs(x) < (0.5 + dead_zone) * step * (1 - EPS)] == 0)
+    assert np.all(q[np.abs(x) >= (0.5 + dead_zone) * step * (1 + EPS)] != 0)
+    assert np.all(np.abs(x - quantiser.dequantise(q)) <= (0.5 + dead_zone) * step * (1 + EPS))
+    # A dead zone only ever moves values towards zero.
+    assert np.all(np.abs(q) <= np.abs(UniformQuantiser(step).quantise(x)))
+
+
+@pytest.mark.parametrize("dead_zone", [0.0, 0.25])
+def test_zero_stays_zero_and_sign_is_symmetric(dead_zone):
+    quantiser = UniformQuantiser(0.1, dead_zone)
+    np.testing.assert_array_equal(quantiser.quantise(np.array([0.0, -0.0])), [0, 0])
+    assert np.all(quantiser.dequantise(np.zeros(3, np.int64)) == 0)
+    x = np.random.default_rng(2).normal(size=1000)
+    np.testing.assert_array_equal(quantiser.quantise(-x), -quantiser.quantise(x))
+
+
+def test_rounds_to_nearest_multiple():
+    quantiser = UniformQuantiser(0.5)
+    np.testing.assert_array_equal(
+        quantiser.quantise([0.2, 0.3, 0.74, 0.76, -0.3, -1.26]), [0, 1, 1, 2, -1, -3]
+    )
+
+
+def test_config_round_trip_through_registry():
+    quantiser = UniformQuantiser(0.05, dead_zone=0.2)
+    config = json.loads(json.dumps(quantiser.get_config()))
+    assert config == {"id": "uniform", "step": 0.05, "dead_zone": 0.2}
+    rebuilt = get_stage(config)
+    assert isinstance(rebuilt, UniformQuantiser)
+    assert (rebuilt.step, rebuilt.dead_zone) == (0.05, 0.2)
+    assert UniformQuantiser.from_config(config).get_config() == config
+
+
+def test_registry_errors():
+    with pytest.raises(ValueError, match="unknown stage id"):
+        get_stage({"id": "no-such-stage"})
+    with pytest.raises(ValueError, match="no 'id'"):
+        get_stage({"step": 1.0})
+
+
+@pytest.mark.parametrize(
+    "step, dead_zone", [(0.0, 0.0), (-1.0, 0.0), (np.inf, 0.0), (1.0, 0.5), (1.0, -0.1)]
+)
+def test_invalid_parameters(step, dead_zone):
+    with pytest.raises(ValueError):
+        UniformQuantiser(step, dead_zone)
+
+
+def test_rejects_values_that_do_not_fit():
+    quantiser = UniformQuantiser(1e-9)
+    for bad in ([np.nan], [np.inf], [1e12]):
+        with pytest.raises(ValueError):
+            quantiser.quantise(np.array(bad))
+
+
+@pytest.mark.parametrize("bits", [2, 8, 12, 16, 32])
+def test_quantise_to_bits_bounds(bits):
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(40, 5)) * np.array([1e-3, 1.0, 10.0, 1e3, 1e6])
+    ints, scales = quantise_to_bits(x, bits)
+    assert ints.shape == x.shape and ints.dtype == np.int64
+    assert scales.shape == (5,) and scales.dtype == np.float32
+    largest = 2 ** (bits - 1) - 1
+    assert np.abs(ints).max() <= largest
+    # Each column uses its full range (up to float32 rounding of the scale),
+    # so small columns keep their precision.
+    assert np.all(np.abs(ints).max(axis=0) >= largest * (1 - 2.0**-22) - 1)
+    error = np.abs(x - dequantise_from_bits(ints, scales))
+    assert np.all(error <= scales.astype(np.float64) / 2 * (1 + 1e-9))
+
+
+def test_quantise_to_bits_zero_column():
+    x = np.zeros((4, 2))
+    x[:, 1] = [1.0, -2.0, 0.5, 0.0]
+    ints, scales = quantise_to_bits(x, 8)
+    assert scales[0] == 0 and np.all(ints[:, 0] == 0)
+    restored = dequantise_from_bits(ints, scales)
+    assert np.all(restored[:, 0] == 0)
+    np.testing.assert_allclose(restored[:, 1], x[:, 1], atol=float(scales[1]) / 2)
+
+
+def test_quantise_to_bits_rejects_bad_input():
+    with pytest.raises(ValueError):
+        quantise_to_bits(np.zeros(3), 8)
+    with pytest.raises(ValueError):
+        quantise_to_bits(np.zeros((3, 3)), 1)
+    with pytest.raises(ValueError):
+        quantise_to_bits(np.full((2, 2), np.nan), 8)

@@ -1,0 +1,119 @@
+"""Tests for mocapzip.codec.temporal, in the style of PyWavelets' own tests."""
+
+import json
+
+import numpy as np
+import pytest
+
+from mocapzip.codec import get_stage
+from mocapzip.codec.temporal import DctTransform, DwtTransform, IdentityTransform
+
+SIZES = [1, 2, 3, 7, 64, 100, 1000, 4097]
+DTYPES = [np.float32, np.float64]
+WAVELETS = ["haar", "db2", "db4", "sym8", "coif3"]
+TOLERANCE = {np.float32: 1e-5, np.float64: 1e-12}
+
+
+def transforms():
+    return [DctTransform(), IdentityTransform()] + [DwtTransform(name) for name in WAVELETS]
+
+
+def curves(n_frames, dtype, n_curves=3, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.cumsum(rng.normal(size=(n_frames, n_curves)), axis=0).astype(dtype)
+
+
+@pytest.mark.parametrize("transform", transforms(), ids=repr)
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("n_frames", SIZES)
+def test_perfect_reconstruction_with_t_coefficients(transform, dtype, n_frames):
+    x = curves(n_frames, dtype)
+    coefs = transform.forward(x)
+    assert coefs.shape == x.shape
+    assert coefs.dtype == dtype
+    restored = transform.inverse(coefs, n_frames)
+    assert restored.dtype == dtype
+    scale = max(1.0, np.abs(x).max())
+    np.testing.assert_allclose(restored, x, rtol=0, atol=TOLERANCE[dtype] * scale)
+
+
+@pytest.mark.parametrize("transform", transforms(), ids=repr)
+@pytest.mark.parametrize("n_frames", SIZES)
+def test_orthonormal_transforms_preserve_energy(transform, n_frames):
+    assert transform.orthonormal
+    x = curves(n_frames, np.float64)
+    coefs = transform.forward(x)
+    assert np.sum(coefs**2) == pytest.approx(np.sum(x**2), rel=1e-10)
+
+
+@pytest.mark.parametrize("transform", transforms(), ids=repr)
+def test_coefficient_error_equals_curve_error(transform):
+    """The property quantisation relies on: errors keep their energy through inverse()."""
+    x = curves(100, np.float64)
+    coefs = transform.forward(x)
+    noise = np.random.default_rng(1).normal(scale=0.01, size=coefs.shape)
+    error = transform.inverse(coefs + noise, 100) - x
+    assert np.sum(error**2) == pytest.approx(np.sum(noise**2), rel=1e-9)
+
+
+def test_biorthogonal_wavelet_reconstructs_but_is_not_orthonormal():
+    transform = DwtTransform("bior2.2")
+    assert not transform.orthonormal
+    x = curves(100, np.float64)
+    np.testing.assert_allclose(transform.inverse(transform.forward(x), 100), x, atol=1e-10)
+
+
+@pytest.mark.parametrize("level", [0, 1, 4, 30])
+@pytest.mark.parametrize("n_frames", [1, 2, 3, 7, 100])
+def test_explicit_levels(level, n_frames):
+    transform = DwtTransform("db4", level=level)
+    x = curves(n_frames, np.float64)
+    coefs = transform.forward(x)
+    assert coefs.shape == x.shape
+    np.testing.assert_allclose(transform.inverse(coefs, n_frames), x, atol=1e-10)
+    assert np.sum(coefs**2) == pytest.approx(np.sum(x**2), rel=1e-10)
+
+
+def test_level_zero_is_identity():
+    x = curves(50, np.float64)
+    np.testing.assert_array_equal(DwtTransform("db4", level=0).forward(x), x)
+
+
+def test_smooth_curves_compact_energy():
+    """Why these transforms exist: a smooth curve's energy ends up in few coefficients."""
+    t = np.linspace(0, 1, 256)[:, None]
+    x = np.sin(2 * np.pi * t) + 0.5 * t
+    for transform in (DctTransform(), DwtTransform("db4")):
+        energy = np.sort(transform.forward(x)[:, 0] ** 2)[::-1]
+        assert energy[:16].sum() > 0.999 * energy.sum()
+
+
+def test_one_dimensional_input():
+    x = curves(100, np.float64)[:, 0]
+    for transform in transforms():
+        coefs = transform.forward(x)
+        assert coefs.shape == (100,)
+        np.testing.assert_allclose(transform.inverse(coefs, 100), x, atol=1e-10)
+
+
+def test_inverse_rejects_wrong_length():
+    for transform in transforms():
+        with pytest.raises(ValueError):
+            transform.inverse(np.zeros((10, 2)), 11)
+
+
+@pytest.mark.parametrize("transform", transforms() + [DwtTransform("sym8", level=3)], ids=repr)
+def test_config_round_trip(transform):
+    config = json.loads(json.dumps(transform.get_config()))
+    rebuilt = get_stage(config)
+    assert type(rebuilt) is type(transform)
+    assert rebuilt.get_config() == transform.get_config()
+    x = curves(100, np.float64)
+    np.testing.assert_array_equal(rebuilt.forward(x), transform.forward(x))
+
+
+def test_invalid_parameters():
+    with pytest.raises(ValueError):
+        DwtTransform("not-a-wavelet")
+    with pytest.raises(ValueError):
+        DwtTransform("db4", level=-1)
