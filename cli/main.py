@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sys
 import warnings
 
@@ -113,12 +114,14 @@ def _summary_line(s: dict) -> str:
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=120.0, show_default=True,
               help="Frame rate stored in the archive (ASF/AMC do not carry one; CMU and HDM05 are 120).")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1, show_default="all cores",
+              help="Worker processes for the error search.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
 def compress(inputs, output, error_cm, lossless, representation, transform, wavelet, level, classes, split, asf,
-             fps, force, quiet, as_json):
+             fps, jobs, force, quiet, as_json):
     """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
 
     Each AMC pairs with the one ASF in its folder (or --asf). Inputs are kept; OUTPUT is
@@ -138,7 +141,7 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
         transform_config.update(wavelet=wavelet, level=level)
     settings = archive.Settings(error_cm=error_cm, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=fps, lossless=lossless)
-    summary = archive.compress(inputs, output, settings, asf=asf, force=force)
+    summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     elif not quiet:

@@ -52,7 +52,7 @@ class Settings:
     lossless: bool = False
 
 
-def compress(inputs, output, settings: Settings, asf=None, force: bool = False) -> dict:
+def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1) -> dict:
     """Compress every clip under `inputs` into `output`; return the summary (also stored in meta)."""
     if not force and os.path.lexists(output):
         raise FileExistsError(None, "already exists", os.fspath(output))
@@ -78,7 +78,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False) 
         transform = get_stage(settings.transform)
         for k, name in enumerate(progress(class_names, desc="classes", unit="class")):
             members = [i for i, c in enumerate(clips) if class_of[c.source.relpath] == name]
-            basis, coded, errors = encode_class([clips[i] for i in members], transform, settings)
+            basis, coded, errors = encode_class([clips[i] for i in members], transform, settings, jobs)
             streams[f"class/{k:04d}"] = basis.encode()
             classes_meta.append({"name": name, "components": basis.q, "clips": len(members),
                                  "frames": sum(clips[i].motion.n_frames for i in members)})

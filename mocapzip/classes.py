@@ -14,7 +14,12 @@ from .inputs import ClipSource
 
 
 def assign_classes(clips: list[ClipSource], mode: str) -> dict[str, str]:
-    """Map each clip's stored path to a class name."""
+    """Map each clip's stored path to a class name.
+
+    Takes the clips' sources only: every mode here is decided by paths and tables.
+    Modes that look at the motion itself (automatic classes) take the loaded clips
+    and are dispatched before this, in `archive.compress`.
+    """
     if mode == "single":
         return {c.relpath: "all" for c in clips}
     if mode == "subject":

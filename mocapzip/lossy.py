@@ -11,7 +11,9 @@ because a yaw error moves a joint by (distance from root) x (angle).
 from __future__ import annotations
 
 import io
+import multiprocessing
 import struct
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,10 +79,7 @@ class ClassBasis:
 
     def project(self, poses: np.ndarray) -> np.ndarray:
         """Least-squares coefficients (the stored basis is only nearly orthonormal)."""
-        if self.q == 0:
-            return np.zeros((poses.shape[0], 0))
-        coef, *_ = np.linalg.lstsq(self.components, (poses - self.mean).T, rcond=None)
-        return coef.T
+        return (poses - self.mean) @ np.linalg.pinv(self.components).T
 
     def reconstruct(self, coefficients: np.ndarray) -> np.ndarray:
         return self.mean + coefficients @ self.components.T
@@ -131,9 +130,12 @@ class CodedClip:
 
 SEARCH_STRIDE = 4  # the search scores every 4th frame (30 Hz at 120 Hz); the final check scores all
 PCA_SHARES = (0.3, 0.5, 0.7)  # candidate shares of the budget for PCA; the rest goes to quantisation
+STEP_RANGE = (1e-4, 1e3)  # quantiser steps searched, in cm-equivalent units
+
+_SHARED: dict = {}  # what forked workers read (clips are large: they are inherited, not pickled)
 
 
-def encode_class(clips, transform, settings):
+def encode_class(clips, transform, settings, jobs: int = 1):
     """Fit the class basis and code each clip within settings.error_cm; return (basis, coded, errors).
 
     The budget split is a search: for each candidate PCA share, the class keeps the fewest
@@ -147,32 +149,53 @@ def encode_class(clips, transform, settings):
     pca = PcaBasis.fit(accumulator)
     target = settings.error_cm
     shares = [settings.split[1] / sum(settings.split)] if settings.split else PCA_SHARES
-    best = None
-    for share in shares:
-        q = max(_components_needed(clip, pca, share * target) for clip in clips)
-        basis = ClassBasis.quantised(pca.mean, pca.components[:, :q], settings.basis_bits)
-        coded, errors = zip(*(_code_clip(clip, basis, transform, settings) for clip in clips))
-        size = len(basis.encode()) + sum(len(c.payload()) for c in coded)
-        if best is None or size < best[0]:
-            best = (size, basis, list(coded), list(errors))
+    _SHARED.update(clips=clips, pca=pca, transform=transform, settings=settings)
+    try:
+        needed = np.array(_parallel(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
+        best = None
+        for k, share in enumerate(shares):
+            basis = ClassBasis.quantised(pca.mean, pca.components[:, : needed[:, k].max()], settings.basis_bits)
+            _SHARED["basis"] = basis
+            coded, errors = zip(*_parallel(_code_clip, range(len(clips)), jobs))
+            size = len(basis.encode()) + sum(len(c.payload()) for c in coded)
+            if best is None or size < best[0]:
+                best = (size, basis, list(coded), list(errors))
+    finally:
+        _SHARED.clear()
     return best[1], best[2], best[3]
 
 
-def _components_needed(clip, pca: PcaBasis, target: float) -> int:
+def _parallel(function, items, jobs: int) -> list:
+    """map over items, in `jobs` forked processes when that can help."""
+    items = list(items)
+    if jobs <= 1 or len(items) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        return [function(i) for i in items]
+    with ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork")) as pool:
+        return list(pool.map(function, items))
+
+
+def _components_for_shares(index: int) -> list[int]:
+    """For each PCA share, the fewest components that keep this clip's PCA-only error within it."""
+    clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
     frames = slice(None, None, SEARCH_STRIDE)
-    poses = clip.poses[frames]
-    centred = poses - pca.mean
-    coef = centred @ pca.components
+    coef = (clip.poses[frames] - pca.mean) @ pca.components
+    root = None if clip.root is None else clip.root[frames]
+    cache: dict[int, float] = {}
 
     def error(q: int) -> float:
-        approx = pca.mean + coef[:, :q] @ pca.components[:, :q].T
-        return clip.error(approx, None if clip.root is None else clip.root[frames], frames)[0]
+        if q not in cache:
+            approx = pca.mean + coef[:, :q] @ pca.components[:, :q].T
+            cache[q] = clip.error(approx, root, frames)[0]
+        return cache[q]
 
-    return smallest_count(error, target, 0, pca.components.shape[1])
+    shares = [settings.split[1] / sum(settings.split)] if settings.split else PCA_SHARES
+    return [smallest_count(error, share * settings.error_cm, 0, pca.components.shape[1]) for share in shares]
 
 
-def _code_clip(clip, basis: ClassBasis, transform, settings):
+def _code_clip(index: int):
     """The largest quantiser steps that keep this clip within budget, verified on every frame."""
+    clip = _SHARED["clips"][index]
+    basis, transform, settings = (_SHARED[k] for k in ("basis", "transform", "settings"))
     target, dz = settings.error_cm, settings.dead_zone
     n = clip.motion.n_frames
     pose_coef = transform.forward(basis.project(clip.poses))
@@ -183,32 +206,35 @@ def _code_clip(clip, basis: ClassBasis, transform, settings):
         return CodedClip(pose_step, UniformQuantiser(pose_step, dz).quantise(pose_coef), root_step,
                          None if root_coef is None else UniformQuantiser(root_step, dz).quantise(root_coef))
 
-    def error(poses, root, frames=sample):
-        return clip.error(poses[frames], None if root is None else root[frames], frames)[0]
-
-    def decoded(step: float, part: int):
-        return reconstruct(code(step, step), basis, transform, dz, n)[part]
+    def error(pose_step: float, root_step: float, exact: str | None = None) -> float:
+        poses, root = reconstruct(code(pose_step, root_step), basis, transform, dz, n, sample)
+        if exact == "poses":
+            poses = clip.poses[sample]
+        elif exact == "root":
+            root = clip.root[sample]
+        return clip.error(poses, root, sample)[0]
 
     if settings.split and root_coef is not None:
         r_share = settings.split[0] / sum(settings.split)
-        root_step, _ = largest_step(lambda s: error(clip.poses, decoded(s, 1)), r_share * target, 1e-4, 1e3)
-        pose_step, _ = largest_step(lambda s: error(decoded(s, 0), clip.root), (1 - r_share) * target, 1e-4, 1e3)
+        root_step, _ = largest_step(lambda s: error(1.0, s, exact="poses"), r_share * target, *STEP_RANGE)
+        pose_step, _ = largest_step(lambda s: error(s, 1.0, exact="root"), (1 - r_share) * target, *STEP_RANGE)
     else:
-        pose_step, _ = largest_step(lambda s: error(*reconstruct(code(s, s), basis, transform, dz, n)), target, 1e-4, 1e3)
+        pose_step, _ = largest_step(lambda s: error(s, s), target, *STEP_RANGE)
         root_step = pose_step
     coded = code(pose_step, root_step)
-    achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), slice(None), final=True)
-    while achieved[0] > target and coded.pose_step > 1e-6:  # the sampled search missed: tighten
+    achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), final=True)
+    while achieved[0] > target and coded.pose_step > STEP_RANGE[0]:  # the sampled search missed: tighten
         coded = code(coded.pose_step * 0.9, coded.root_step * 0.9)
-        achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), slice(None), final=True)
+        achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), final=True)
     return coded, achieved
 
 
-def reconstruct(coded: CodedClip, basis: ClassBasis, transform, dead_zone: float, n_frames: int):
-    """Poses and root track (unscaled) from a clip's quantised coefficients."""
-    coef = dequantise_curves(coded.pose_ints, coded.pose_step, transform, dead_zone, n_frames)
+def reconstruct(coded: CodedClip, basis: ClassBasis, transform, dead_zone: float, n_frames: int,
+                frames=slice(None)):
+    """Poses and root track (unscaled) of `frames` from a clip's quantised coefficients."""
+    coef = dequantise_curves(coded.pose_ints, coded.pose_step, transform, dead_zone, n_frames)[frames]
     poses = basis.reconstruct(coef)
     root = None
     if coded.root_ints is not None:
-        root = unscale_root(dequantise_curves(coded.root_ints, coded.root_step, transform, dead_zone, n_frames))
+        root = unscale_root(dequantise_curves(coded.root_ints, coded.root_step, transform, dead_zone, n_frames)[frames])
     return poses, root

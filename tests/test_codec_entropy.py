@@ -84,7 +84,7 @@ def test_bytes_round_trip():
 
 
 def assert_corruption_detected(decode, blob, expected):
-    """Every single-byte change, truncation and extension raises ValueError or decodes correctly."""
+    """Every single-byte change, truncation or extension raises ValueError or decodes correctly."""
     for position in range(len(blob)):
         for flip in (0x01, 0x80):
             damaged = blob[:position] + bytes([blob[position] ^ flip]) + blob[position + 1 :]

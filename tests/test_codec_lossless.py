@@ -1,4 +1,4 @@
-"""Tests for mocapzip.codec.lossless: exact round trips of channel matrices parsed from AMC text."""
+"""Tests for mocapzip.codec.lossless: exact round trips of channel matrices from AMC text."""
 
 import time
 from pathlib import Path
@@ -8,7 +8,8 @@ import pytest
 
 from mocapzip.codec.lossless import decode_channels, encode_channels
 
-REAL_FILE = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "cmu" / "07" / "07_01.amc"
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+REAL_FILE = DATA / "cmu" / "07" / "07_01.amc"
 
 
 def parse(texts):

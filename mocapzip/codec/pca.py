@@ -56,7 +56,8 @@ class CovarianceAccumulator:
     def _combine(self, count: int, mean: np.ndarray, scatter: np.ndarray) -> None:
         total = self.count + count
         delta = mean - self._mean
-        self._scatter = self._scatter + scatter + np.outer(delta, delta) * (self.count * count / total)
+        cross = np.outer(delta, delta) * (self.count * count / total)
+        self._scatter = self._scatter + scatter + cross
         self._mean = self._mean + delta * (count / total)
         self.count = total
 
@@ -67,7 +68,7 @@ class CovarianceAccumulator:
 
     @property
     def covariance(self) -> np.ndarray:
-        """Population covariance (scatter / count), so its eigenvalues times count are residual energies."""
+        """Population covariance (scatter / count): eigenvalue * count = residual energy."""
         self._require_data()
         return self._scatter / self.count
 
