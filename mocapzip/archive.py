@@ -25,7 +25,7 @@ from .clip import LoadedClip, channels_from, load_clips, skeleton_params
 from .codec import get_stage
 from .codec.entropy import decode_bytes, encode_bytes
 from .codec.lossless import decode_channels, encode_channels
-from .formats.amc import Motion, format_amc
+from .formats.amc import AmcStyle, Motion, format_amc
 from .formats.asf import parse_asf
 from .formats.errors import MocapFormatError
 from .formats.mcz import ArchiveError, ArchiveReader, write_archive
@@ -122,6 +122,7 @@ def _clip_row(clip: LoadedClip, class_index: int) -> dict:
         "bones": m.bones,
         "counts": m.counts,
         "angle_unit": clip.layout.angle_unit,
+        "style": asdict(m.style),  # how the source wrote numbers and lines, to write it back alike
     }
 
 
@@ -185,7 +186,7 @@ class Archive:
         if values.shape != (row["frames"], sum(row["counts"])):
             raise ArchiveError(f"{name} ({row['path']}): decoded shape {values.shape} does not match", self.path)
         frames = np.arange(row["first_frame"], row["first_frame"] + row["frames"])
-        return Motion(row["bones"], row["counts"], values, frames, row["header"], row["path"])
+        return Motion(row["bones"], row["counts"], values, frames, row["header"], row["path"], AmcStyle(**row["style"]))
 
     def _model(self, k: int) -> SkeletonModel:
         if k not in self._models:
@@ -239,7 +240,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False) -> dict:
             else:
                 motion = archive.decode(index)
                 frames += motion.n_frames
-                _write_atomically(path, format_amc(motion).encode("latin-1"))
+                _write_atomically(path, format_amc(motion).encode(motion.style.encoding, errors="replace"))
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
 
 

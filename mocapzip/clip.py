@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .formats.amc import Motion, read_amc
+from .formats.amc import AmcStyle, Motion, read_amc
 from .formats.asf import read_asf
 from .inputs import ClipSource
 from .kinematics import forward
@@ -48,18 +48,21 @@ class LoadedClip:
     def error(self, poses: np.ndarray, root: np.ndarray | None, frames=slice(None), final: bool = False):
         """(mean, max) joint-position error in cm of decoded `poses`/`root` for the original `frames`.
 
-        `final` rounds the channels to the 6 significant digits the AMC writer uses, as on disk.
+        `final` rounds the channels as the AMC writer will (the source's number style), as on disk.
         """
         values = channels_from(self.model, self.representation_name, self.layout, poses, root, self.encoded.params)
         if final:
-            values = round_significant(values)
+            values = round_as_written(values, self.motion.style)
         decoded = forward(self.model, values, self.layout).positions
         distances = joint_distances(self.positions[frames], decoded)
         return float(distances.mean()), float(distances.max())
 
 
-def round_significant(values: np.ndarray, digits: int = 6) -> np.ndarray:
-    """What `%.{digits}g` text reads back as (vectorised, via the decimal exponent)."""
+def round_as_written(values: np.ndarray, style: AmcStyle) -> np.ndarray:
+    """What the AMC text of `values` in `style` reads back as (vectorised)."""
+    if style.notation == "f":
+        return np.round(values, style.digits)
+    digits = style.digits
     with np.errstate(divide="ignore"):
         exponent = np.floor(np.log10(np.abs(values)))
     exponent = np.where(np.isfinite(exponent), exponent, 0)

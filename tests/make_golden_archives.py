@@ -1,0 +1,24 @@
+"""Write the codec's golden archives tests/golden/{lossy,lossless}_v{FORMAT_VERSION}.mcz.
+
+Run by hand, only when the archive format changes (a new FORMAT_VERSION): each golden
+file stays in the repository for good, so every future reader is tested against what
+every past writer wrote. The inputs are two short real clips from ../shared/data.
+"""
+
+import sys
+from pathlib import Path
+
+from mocapzip.archive import Settings, compress
+from mocapzip.formats.mcz import FORMAT_VERSION
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+GOLDEN = Path(__file__).parent / "golden"
+INPUTS = [DATA / "cmu" / "09" / "09_01.amc", DATA / "cmu" / "09" / "09_02.amc"]
+
+if __name__ == "__main__":
+    for name, settings in (("lossy", Settings(error_cm=1.0)), ("lossless", Settings(lossless=True))):
+        path = GOLDEN / f"{name}_v{FORMAT_VERSION}.mcz"
+        if path.exists():
+            sys.exit(f"{path} exists: golden files are never regenerated")
+        summary = compress(INPUTS, path, settings)
+        print(f"wrote {path}: {summary['output_bytes']} bytes")

@@ -1,0 +1,165 @@
+"""End-to-end round trips through `mcz compress` / `mcz decompress` on real clips.
+
+The error is measured independently of the codec: the decompressed AMC text is read
+back by the formats module and run through forward kinematics against the original.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mocapzip.archive import Archive, Settings, compress
+from mocapzip.cli.main import main
+from mocapzip.codec.lossless import decode_channels, encode_channels
+from mocapzip.formats.amc import read_amc
+from mocapzip.formats.asf import read_asf
+from mocapzip.kinematics import forward
+from mocapzip.skeleton import SkeletonModel
+
+GOLDEN = Path(__file__).parent / "golden"
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def clip_errors(original_dir: Path, decoded_dir: Path, relpaths) -> dict[str, float]:
+    """Mean joint-position error (cm) of each decoded AMC against its original."""
+    errors = {}
+    for rel in relpaths:
+        asf = next((original_dir / rel).parent.glob("*.asf"))
+        skeleton = read_asf(asf)
+        model = SkeletonModel.from_asf(skeleton)
+        original = read_amc(original_dir / rel, skeleton)
+        decoded = read_amc(decoded_dir / rel, read_asf(decoded_dir / Path(rel).parent / asf.name))
+        assert decoded.bones == original.bones and decoded.header == original.header
+        assert np.array_equal(decoded.frame_numbers, original.frame_numbers)
+        a = forward(model, original.values, original).positions
+        b = forward(model, decoded.values, decoded).positions
+        errors[rel] = float(np.linalg.norm(a - b, axis=-1).mean())
+    return errors
+
+
+@pytest.fixture(scope="module")
+def small_set(tmp_path_factory, shared_data) -> Path:
+    """Two subjects, walk and run, kept short so the suite stays fast: a folder of real files."""
+    root = tmp_path_factory.mktemp("input")
+    for subject, names in (("09", ["09_01.amc", "09_05.amc"]), ("07", ["07_01.amc"])):
+        (root / subject).mkdir()
+        shutil.copy(shared_data / "cmu" / subject / f"{subject}.asf", root / subject)
+        for name in names:
+            shutil.copy(shared_data / "cmu" / subject / name, root / subject / name)
+    return root
+
+
+@pytest.mark.parametrize("error_cm", [1.0, 0.5])
+def test_lossy_round_trip_meets_the_target(small_set, tmp_path, error_cm):
+    archive = tmp_path / "db.mcz"
+    result = run("compress", small_set, "-o", archive, "-e", error_cm, "-q", "-j", "1")
+    assert result.exit_code == 0, result.output
+    assert run("decompress", archive, "-o", tmp_path / "out", "-q").exit_code == 0
+    rels = ["07/07_01.amc", "09/09_01.amc", "09/09_05.amc"]
+    measured = clip_errors(small_set, tmp_path / "out", rels)
+    assert all(0 < e <= error_cm for e in measured.values()), measured
+    stored = {c["path"]: c["error_cm"] for c in json.loads(run("info", archive, "--json").output)["clips"]}
+    for rel in rels:  # the stored error is the real one (up to the 6-digit text rounding)
+        assert abs(stored[rel] - measured[rel]) < 1e-3
+    # The skeleton comes back byte for byte.
+    assert (tmp_path / "out/07/07.asf").read_bytes() == (small_set / "07/07.asf").read_bytes()
+
+
+def test_lower_error_costs_more_bytes(small_set, tmp_path):
+    sizes = [compress([small_set], tmp_path / f"{e}.mcz", Settings(error_cm=e))["output_bytes"] for e in (2.0, 0.5)]
+    assert sizes[0] < sizes[1]
+
+
+@pytest.mark.parametrize("representation", ["channels", "positions", "scaled", "normalised"])
+def test_every_representation_round_trips_within_target(small_set, tmp_path, representation):
+    settings = Settings(error_cm=1.0, representation=representation, classes="single")
+    compress([small_set / "09"], tmp_path / "db.mcz", settings)
+    with Archive(tmp_path / "db.mcz") as archive:
+        for i, row in enumerate(archive.clips):
+            assert row["error_cm"] <= 1.0
+            assert archive.decode(i).values.shape == (row["frames"], 62)
+
+
+def test_dwt_and_forced_split(small_set, tmp_path):
+    settings = Settings(error_cm=1.0, transform={"id": "dwt", "wavelet": "db4", "level": None}, split=[0.2, 0.4, 0.4])
+    summary = compress([small_set / "09"], tmp_path / "db.mcz", settings)
+    assert summary["worst_error_cm"] <= 1.0
+
+
+def test_lossless_cli_is_exact_on_odd_exporters(shared_data, tmp_path):
+    """Vicon Blade writes fixed 6 decimals; cmu-edited files have no headers or final newline."""
+    out = tmp_path / "out"
+    inputs = [shared_data / "other-vicon-blade" / "walk_200fps", shared_data / "cmu-edited" / "07"]
+    for i, folder in enumerate(inputs):
+        asf = ["--asf", shared_data / "cmu/07/07.asf"] if "edited" in str(folder) else []
+        assert run("compress", folder, "-o", tmp_path / f"{i}.mcz", "--lossless", "-q", *asf).exit_code == 0
+        assert run("decompress", tmp_path / f"{i}.mcz", "-o", out / str(i), "-q").exit_code == 0
+        for amc in folder.glob("*.amc"):
+            a, b = read_amc(amc), read_amc(out / str(i) / amc.name)
+            assert a.header == b.header and a.bones == b.bones
+            assert np.array_equal(a.values, b.values), amc
+
+
+def test_lossless_channel_coding_is_exact_on_every_shared_amc(shared_data):
+    files = sorted(p for p in shared_data.rglob("*") if p.suffix.lower() == ".amc")
+    assert len(files) > 150
+    for path in files:
+        values = read_amc(path).values
+        assert np.array_equal(decode_channels(encode_channels(values)), values), path
+
+
+def test_golden_archives_keep_decoding(shared_data):
+    with Archive(GOLDEN / "lossless_v1.mcz") as archive:
+        for i, row in enumerate(archive.clips):
+            original = read_amc(shared_data / "cmu" / "09" / row["path"])
+            assert np.array_equal(archive.decode(i).values, original.values)
+    with Archive(GOLDEN / "lossy_v1.mcz") as archive:
+        skeleton = read_asf(shared_data / "cmu/09/09.asf")
+        assert archive.skeleton_text(0).encode("latin-1") == (shared_data / "cmu/09/09.asf").read_bytes()
+        model = SkeletonModel.from_asf(skeleton)
+        for i, row in enumerate(archive.clips):
+            original = read_amc(shared_data / "cmu" / "09" / row["path"])
+            decoded = archive.decode(i)
+            a = forward(model, original.values, original).positions
+            b = forward(model, decoded.values, decoded).positions
+            assert np.linalg.norm(a - b, axis=-1).mean() <= row["error_cm"] + 1e-3 <= 1.0 + 1e-3
+
+
+def test_cli_refuses_to_overwrite_and_extracts_by_pattern(small_set, tmp_path):
+    archive = tmp_path / "db.mcz"
+    assert run("compress", small_set, "-o", archive, "-q", "-e", "2").exit_code == 0
+    again = run("compress", small_set, "-o", archive, "-q")
+    assert again.exit_code == 1 and "already exists" in again.output
+    assert run("compress", small_set, "-o", archive, "-q", "-f", "-e", "2").exit_code == 0
+    result = run("decompress", archive, "-o", tmp_path / "out", "--clip", "09/*", "-q")
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "out").rglob("*")) == ["09", "09.asf", "09_01.amc", "09_05.amc"]
+    assert run("decompress", archive, "-o", tmp_path / "out", "--clip", "09/*", "-q").exit_code == 1
+    assert run("test", archive, "-q").exit_code == 0
+
+
+def test_damaged_archive_is_refused_with_the_clip_named(small_set, tmp_path):
+    archive = tmp_path / "db.mcz"
+    compress([small_set], archive, Settings(error_cm=2.0))
+    data = bytearray(archive.read_bytes())
+    data[-40] ^= 0xFF  # inside the payload: the last clip's stream
+    archive.write_bytes(bytes(data))
+    for command in (("test", archive), ("decompress", archive, "-o", tmp_path / "out")):
+        result = run(*command)
+        assert result.exit_code == 1
+        assert "clip/" in result.output and "Traceback" not in result.output
+
+
+def test_missing_skeleton_is_exit_1(shared_data, tmp_path):
+    result = run("compress", shared_data / "cmu-edited" / "91", "-o", tmp_path / "x.mcz")
+    assert result.exit_code == 1 and "no skeleton" in result.output
+    assert not (tmp_path / "x.mcz").exists()
