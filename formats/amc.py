@@ -1,8 +1,29 @@
 """Acclaim Motion Capture (AMC): read and write.
 
-A `Motion` holds one clip as a float64 matrix (frames x channels). Columns follow
-the bone order of the file's first frame, each bone contributing its values in
-the order its line carries them, so a written file keeps the source's layout.
+A `Motion` holds one clip as a float64 matrix (frames x channels). Columns follow the bone
+order of the file's first frame, each bone contributing its values in the order its line
+carries them, so a written file keeps the source's layout.
+
+Reading has two paths that accept exactly the same files and give the same numbers:
+
+* a vectorised fast path for the usual layout (every frame lists the first frame's bones in
+  the same order, one bone per line): the whole file is tokenised and converted with NumPy,
+  no Python loop per value or per line;
+* an exact line-by-line path for everything else (bones in varying order, comments or blank
+  lines between frames, a truncated last frame) and for damaged files, where it names the
+  file, line and fault in a `MocapFormatError`.
+
+Rules (both paths): header lines before the first frame are `#` comments, `:KEYWORDS` or
+blank; a frame is a line holding only its number, then one line per bone (name, values);
+frame numbers may start anywhere but must go up by one; every frame lists the same bones
+with the same number of values; values follow the grammar in `text` and lie within
++-`text.MAX_ABS_VALUE` (1e9). A truncated LAST frame (a copy cut short, e.g. cmu/64/golf_01.amc)
+is dropped with a warning; a truncated frame anywhere else is an error.
+
+Writing remembers how the source wrote its numbers and lines (`AmcStyle`): CMU files are
+written back with 6 significant digits and 3-digit exponents, Vicon Blade files with 6 fixed
+decimals, so values come back without loss; every file of the shared data set except the
+truncated golf_01.amc comes back byte for byte (line ends, header and spacing included).
 """
 
 from __future__ import annotations
@@ -10,14 +31,72 @@ from __future__ import annotations
 import os
 import re
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from .errors import MocapFormatError
-from .text import decode_text
+from .text import (
+    MAX_ABS_VALUE,
+    NUMBER,
+    WHITESPACE,
+    check_text,
+    detect_encoding,
+    number,
+    padded_buffer,
+    parse_number_tokens,
+    token_bounds,
+)
 
-_FRAME_NUMBER = re.compile(r"^\s*(\d+)\s*$")
+__all__ = ["AmcStyle", "Motion", "read_amc", "parse_amc", "format_amc", "write_amc"]
+
+_MAX_FAST_BONES = 255  # first frames with more bones take the exact path
+MAX_FRAME_NUMBER = 10**9  # larger frame numbers are refused (a day at 10 kHz is below 1e9)
+
+
+@dataclass(frozen=True)
+class AmcStyle:
+    """How an AMC file writes its numbers and lines; `read_amc` detects it, `format_amc` uses it.
+
+    The defaults are CMU's conventions with portable line ends: 6 significant digits, LF.
+    """
+
+    notation: str = "g"  # 'g': significant digits (CMU, HDM05); 'f': fixed decimals (Vicon Blade)
+    digits: int = 6  # significant digits ('g') or decimals ('f')
+    exponent_digits: int = 2  # minimum exponent width; CMU (Windows printf) writes e-015: 3
+    name_separator: str = " "  # between a bone name and its first value (Blade: two spaces)
+    newline: str = "\n"  # line end of the bone lines ('\r\n' for CRLF files), default for all lines
+    header_newline: str | None = None  # line end of the header lines, when it differs
+    frame_newline: str | None = None  # line end of the frame-number lines, when it differs (HDM05: LF)
+    final_newline: bool = True  # whether the last line ends with a newline
+    encoding: str = "utf-8"  # of header comments: 'latin-1' when the source was not UTF-8
+
+    def __post_init__(self):
+        if self.notation not in ("g", "f"):
+            raise ValueError(f"AmcStyle.notation must be 'g' or 'f', got {self.notation!r}")
+        if not (1 if self.notation == "g" else 0) <= int(self.digits) <= 40:
+            raise ValueError(f"AmcStyle.digits out of range: {self.digits!r}")
+        if self.exponent_digits < 1:
+            raise ValueError(f"AmcStyle.exponent_digits must be >= 1, got {self.exponent_digits!r}")
+        if not self.name_separator or self.name_separator.strip(" \t"):
+            raise ValueError(f"AmcStyle.name_separator must be spaces or tabs, got {self.name_separator!r}")
+        for nl in (self.newline, self.header_newline, self.frame_newline):
+            if nl is not None and nl not in ("\n", "\r\n", "\r"):
+                raise ValueError(f"AmcStyle newline must be LF, CRLF or CR, got {nl!r}")
+
+    @property
+    def number_format(self) -> str:
+        """The printf format of one value, e.g. '%.6g' or '%.6f'."""
+        return f"%.{int(self.digits)}{self.notation}"
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (for archives that want byte-identical AMC files back)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "AmcStyle":
+        known = {k: data[k] for k in cls.__dataclass_fields__ if k in data}
+        return cls(**known)
 
 
 @dataclass
@@ -27,9 +106,10 @@ class Motion:
     bones: list[str]  # bone order of the file's frames
     counts: list[int]  # values per bone, same order
     values: np.ndarray  # (frames, sum(counts)) float64
-    frame_numbers: np.ndarray  # (frames,) int64, as numbered in the file
-    header: list[str] = field(default_factory=list)  # lines before the first frame, verbatim
+    frame_numbers: np.ndarray  # (frames,) int64, as numbered in the file (consecutive)
+    header: list[str] = field(default_factory=list)  # lines before the first frame, verbatim (no line ends)
     path: str | None = None
+    style: AmcStyle = field(default_factory=AmcStyle)  # number and line style of the source file
 
     @property
     def n_frames(self) -> int:
@@ -42,174 +122,465 @@ class Motion:
 
     def columns(self) -> dict[str, slice]:
         """Bone name -> slice of its columns in `values`."""
-        starts = np.concatenate([[0], np.cumsum(self.counts)])
+        starts = np.concatenate([[0], np.cumsum(self.counts)]).astype(int)
         return {b: slice(int(starts[i]), int(starts[i + 1])) for i, b in enumerate(self.bones)}
 
 
+# --------------------------------------------------------------------------- reading
+
+
 def read_amc(path: str | os.PathLike, skeleton=None) -> Motion:
-    """Parse an AMC file; with `skeleton`, also check bone names and value counts against it."""
+    """Parse an AMC file; with `skeleton` (a Skeleton), also check bone names and value counts."""
     path = os.fspath(path)
     with open(path, "rb") as fh:
         data = fh.read()
-    return parse_amc(data, path, skeleton)
+    return _parse(data, path, skeleton, stacklevel=4)
 
 
 def parse_amc(data: bytes, path: str | None = None, skeleton=None) -> Motion:
-    lines = decode_text(data, path).splitlines()
-    first = _first_frame_line(lines, path)
-    header = [line.rstrip() for line in lines[:first] if line.strip()]
-    body = lines[first:]
-    # Drop blank lines but keep file line numbers for messages.
-    numbered = [(first + 1 + i, line) for i, line in enumerate(body) if line.strip()]
-    linenos = np.fromiter((n for n, _ in numbered), dtype=np.int64, count=len(numbered))
-    texts = [line for _, line in numbered]
-    is_frame = np.fromiter((bool(_FRAME_NUMBER.match(t)) for t in texts), dtype=bool, count=len(texts))
-    frame_rows = np.flatnonzero(is_frame)
-    starts = np.append(frame_rows, len(texts))
-    per_frame = np.diff(starts) - 1
+    """Parse AMC bytes (`path` only names the source in messages and in `Motion.path`)."""
+    return _parse(data, path, skeleton, stacklevel=4)
 
-    first_frame = texts[frame_rows[0] + 1 : starts[1]]
-    bones = [t.split(None, 1)[0] for t in first_frame]
-    if len(set(bones)) != len(bones):
-        dup = next(b for b in bones if bones.count(b) > 1)
-        raise MocapFormatError(f"bone '{dup}' appears twice in one frame", path, int(linenos[frame_rows[0] + 1 + bones.index(dup) + 1]))
-    counts = [len(t.split()) - 1 for t in first_frame]
+
+def _parse(data, path, skeleton, stacklevel: int) -> Motion:
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    data = check_text(data, path)
+    encoding = "utf-8" if data.isascii() else detect_encoding(data)
+    parsed = _parse_fast(data, path, encoding)
+    if parsed is None:
+        return _parse_exact(data, path, encoding, skeleton, stacklevel)[0]
+    motion, first_lines = parsed
     if skeleton is not None:
-        _check_against_skeleton(bones, counts, first_frame, linenos[frame_rows[0] + 1 :], skeleton, path)
-
-    frame_numbers = np.array([int(texts[r]) for r in frame_rows], dtype=np.int64)
-    _check_frame_numbers(frame_numbers, linenos[frame_rows], path)
-
-    n_frames, n_bones = len(frame_rows), len(bones)
-    if n_frames > 1 and per_frame[-1] < n_bones:
-        # Real files end mid-frame when a copy was cut short (cmu/64/golf_01.amc): keep the
-        # complete frames and say so; a short frame anywhere else is an error.
-        warnings.warn(
-            f"{path}:{int(linenos[frame_rows[-1]])}: last frame {frame_numbers[-1]} is incomplete "
-            f"({per_frame[-1]} of {n_bones} bones); dropped",
-            stacklevel=2,
-        )
-        texts, is_frame, linenos = texts[: frame_rows[-1]], is_frame[: frame_rows[-1]], linenos[: frame_rows[-1]]
-        frame_rows, per_frame, frame_numbers = frame_rows[:-1], per_frame[:-1], frame_numbers[:-1]
-        n_frames -= 1
-    if np.any(per_frame != n_bones) or not _same_bone_order(texts, is_frame, bones):
-        return _parse_irregular(texts, linenos, frame_rows, bones, counts, frame_numbers, header, path)
-
-    bone_lines = [t for t, f in zip(texts, is_frame) if not f]
-    tokens = " ".join(bone_lines).split()
-    expected_tokens = n_frames * (n_bones + sum(counts))
-    if len(tokens) != expected_tokens:
-        return _parse_irregular(texts, linenos, frame_rows, bones, counts, frame_numbers, header, path)
-    table = np.array(tokens, dtype=object).reshape(n_frames, n_bones + sum(counts))
-    value_cols = np.ones(table.shape[1], dtype=bool)
-    value_cols[np.concatenate([[0], np.cumsum(np.array(counts) + 1)[:-1]])] = False
-    values = _to_float(table[:, value_cols], path, texts, linenos, is_frame)
-    return Motion(bones, counts, values, frame_numbers, header, path)
+        _check_against_skeleton(motion.bones, motion.counts, first_lines, skeleton, path)
+    return motion
 
 
-def _first_frame_line(lines: list[str], path) -> int:
-    for i, line in enumerate(lines):
-        stripped = line.strip()
-        if not stripped or stripped.startswith("#") or stripped.startswith(":"):
-            continue
-        if _FRAME_NUMBER.match(line):
-            return i
-        raise MocapFormatError(f"expected a frame number, got {stripped[:40]!r}", path, i + 1)
-    raise MocapFormatError("no frames (empty AMC file)", path)
+def _is_frame_line(stripped: bytes) -> bool:
+    return stripped.isdigit()
 
 
-def _check_frame_numbers(numbers: np.ndarray, linenos: np.ndarray, path) -> None:
-    steps = np.diff(numbers)
-    bad = np.flatnonzero(steps != 1)
-    if bad.size:
-        i = int(bad[0]) + 1
-        kind = "duplicate" if steps[bad[0]] == 0 else "out-of-order" if steps[bad[0]] < 0 else "skipped"
-        raise MocapFormatError(
-            f"{kind} frame number {numbers[i]} after {numbers[i - 1]}", path, int(linenos[i])
-        )
+def _parse_fast(data: bytes, path, encoding):
+    """The usual layout, vectorised; None when the file needs the exact path (or is damaged)."""
+    # Header: '#', ':' and blank lines up to the first frame number.
+    header: list[str] = []
+    header_newline = None
+    pos = 0
+    while True:
+        end = data.find(b"\n", pos)
+        raw = data[pos:] if end < 0 else data[pos:end]
+        if raw.endswith(b"\r"):
+            raw = raw[:-1]
+        stripped = raw.strip(WHITESPACE)
+        if _is_frame_line(stripped):
+            break
+        if (stripped and stripped[:1] not in (b"#", b":")) or b"\r" in raw or end < 0:
+            return None
+        header.append(raw.decode(encoding))
+        if header_newline is None:
+            header_newline = "\r\n" if data[end - 1 : end] == b"\r" else "\n"
+        pos = end + 1
+    if not raw[:1].isdigit():
+        return None  # indented frame number
+    body = data[pos:]
+    final_newline = body.endswith(b"\n")
+    body = body.rstrip(WHITESPACE)
+    if b"\r" in body and body.count(b"\r") != body.count(b"\r\n"):
+        return None  # a lone CR ends a line too: exact path
 
+    # First frame, in Python: bone names, value counts, line style.
+    lines = body.split(b"\n", _MAX_FAST_BONES + 1)
+    frame_newline = "\r\n" if lines[0].endswith(b"\r") else "\n"
+    newline = "\r\n" if len(lines) > 1 and lines[1].endswith(b"\r") else frame_newline
+    bones: list[str] = []
+    counts: list[int] = []
+    name_bytes: list[bytes] = []
+    separator = None
+    for raw in lines[1 : _MAX_FAST_BONES + 1]:
+        words = raw.split()
+        if len(words) == 1 and _is_frame_line(words[0]):
+            break
+        if not words or raw[:1] in WHITESPACE or NUMBER.match(words[0]) or words[0][:1] == b"#":
+            return None
+        if words[0] in name_bytes:
+            return None
+        name_bytes.append(words[0])
+        bones.append(words[0].decode(encoding))
+        counts.append(len(words) - 1)
+        if separator is None and len(words) > 1:
+            separator = raw[len(words[0]) : raw.index(words[1], len(words[0]))].decode("ascii", "replace")
+    else:
+        if len(lines) > _MAX_FAST_BONES + 1:
+            return None  # a first frame of more than _MAX_FAST_BONES bones: exact path
+    n_bones = len(bones)
+    if n_bones == 0:
+        return None
+    n_values = sum(counts)
 
-def _same_bone_order(texts, is_frame, bones) -> bool:
-    names = [t.split(None, 1)[0] for t, f in zip(texts, is_frame) if not f]
-    n = len(bones)
-    return all(names[i::n] == [b] * len(names[i::n]) for i, b in enumerate(bones)) if names else True
+    buf = padded_buffer(body)
+    starts, ends = token_bounds(buf)
+    width = 1 + n_bones + n_values
+    if len(starts) % width:
+        return None  # irregular or truncated: exact path
+    n_frames = len(starts) // width
+    starts = starts.reshape(n_frames, width)
+    ends = ends.reshape(n_frames, width)
+    name_cols = np.cumsum([1] + [c + 1 for c in counts[:-1]])
+    value_cols = np.concatenate([np.arange(nc + 1, nc + 1 + c) for nc, c in zip(name_cols, counts)]).astype(int)
 
+    # One frame number or bone per line: every frame number and bone name directly follows a
+    # newline, and the body has no other newline.
+    line_starts = starts[:, np.concatenate([[0], name_cols])].ravel()
+    if body.count(b"\n") != line_starts.size - 1 or not np.all(buf[line_starts[1:] - 1] == 10):
+        return None
 
-def _parse_irregular(texts, linenos, frame_rows, bones, counts, frame_numbers, header, path) -> Motion:
-    """Slow path for files whose frames list bones in varying order or are damaged: find the fault."""
-    column = {b: i for i, b in enumerate(bones)}
-    offsets = np.concatenate([[0], np.cumsum(counts)])
-    values = np.empty((len(frame_rows), int(offsets[-1])))
-    ends = list(frame_rows[1:]) + [len(texts)]
-    for f, (start, end) in enumerate(zip(frame_rows, ends)):
-        seen = set()
-        for row in range(start + 1, end):
-            words = texts[row].split()
-            name, line = words[0], int(linenos[row])
-            if name not in column:
-                raise MocapFormatError(f"bone '{name}' is not in the first frame's bones", path, line)
-            if name in seen:
-                raise MocapFormatError(f"bone '{name}' appears twice in frame {frame_numbers[f]}", path, line)
-            seen.add(name)
-            i = column[name]
-            if len(words) - 1 != counts[i]:
-                raise MocapFormatError(
-                    f"bone '{name}' has {len(words) - 1} values, expected {counts[i]}", path, line
-                )
-            values[f, offsets[i] : offsets[i + 1]] = _to_float(np.array(words[1:], dtype=object), path, texts, linenos, None, row)
-        if len(seen) != len(bones):
-            missing = next(b for b in bones if b not in seen)
-            raise MocapFormatError(
-                f"truncated frame {frame_numbers[f]}: bone '{missing}' missing", path, int(linenos[end - 1])
-            )
-    return Motion(bones, counts, values, frame_numbers, header, path)
+    # Bone names at their places, byte for byte.
+    longest = max(len(n) for n in name_bytes)
+    expected = np.zeros((n_bones, longest), dtype=np.uint8)
+    mask = np.zeros((n_bones, longest), dtype=bool)
+    for i, name in enumerate(name_bytes):
+        expected[i, : len(name)] = np.frombuffer(name, dtype=np.uint8)
+        mask[i, : len(name)] = True
+    lengths = np.array([len(n) for n in name_bytes])
+    name_starts = starts[:, name_cols]
+    if not np.array_equal(ends[:, name_cols] - name_starts, np.broadcast_to(lengths, name_starts.shape)):
+        return None
+    windows = np.lib.stride_tricks.as_strided(buf, shape=(buf.size - longest, longest), strides=(1, 1))
+    if not np.all((windows[name_starts] == expected) | ~mask):
+        return None
 
+    # Frame numbers: digits only, consecutive.
+    frame_block = parse_number_tokens(buf, starts[:, 0], ends[:, 0])
+    frame_chars = buf[starts[:, 0]]
+    if not (frame_block.ok.all() and not frame_block.has_dot.any() and not frame_block.has_exp.any()):
+        return None
+    if np.any((frame_chars < 48) | (frame_chars > 57)):
+        return None
+    frame_numbers = frame_block.values.astype(np.int64)
+    if (n_frames > 1 and not np.all(np.diff(frame_numbers) == 1)) or frame_numbers[-1] > MAX_FRAME_NUMBER:
+        return None
 
-def _to_float(tokens: np.ndarray, path, texts, linenos, is_frame, row=None) -> np.ndarray:
-    """Vectorised float conversion; on failure find the offending token's line."""
-    try:
-        values = tokens.astype(np.float64)
-    except ValueError:
-        values = None
-    if values is not None and np.all(np.isfinite(values)):
-        return values
-    rows = [row] if row is not None else [i for i, f in enumerate(is_frame) if not f]
-    for r in rows:
-        for word in texts[r].split()[1:]:
+    # Values.
+    block = parse_number_tokens(buf, starts[:, value_cols].ravel(), ends[:, value_cols].ravel())
+    if not block.ok.all():
+        flat_starts = starts[:, value_cols].ravel()
+        flat_ends = ends[:, value_cols].ravel()
+        for i in np.flatnonzero(~block.ok):
+            raw = buf[flat_starts[i] : flat_ends[i]].tobytes()
             try:
-                v = float(word)
-            except ValueError:
-                raise MocapFormatError(f"not a number: {word[:40]!r}", path, int(linenos[r])) from None
-            if not np.isfinite(v):
-                raise MocapFormatError(f"value is not finite: {word!r}", path, int(linenos[r]))
-    raise MocapFormatError("unparseable values", path)
+                value = number(raw, path, None)
+            except MocapFormatError:
+                return None
+            block.store(i, value, raw)
+    if not np.all(np.abs(block.values) <= MAX_ABS_VALUE):
+        return None
+
+    style = AmcStyle(
+        **_number_style(block),
+        name_separator=_separator(separator),
+        newline=newline,
+        header_newline=header_newline if header_newline not in (None, newline) else None,
+        frame_newline=frame_newline if frame_newline != newline else None,
+        final_newline=final_newline,
+        encoding=encoding,
+    )
+    values = block.values.reshape(n_frames, n_values)
+    first_lines = {b: len(header) + 2 + i for i, b in enumerate(bones)}
+    return Motion(bones, counts, values, frame_numbers, header, path, style), first_lines
 
 
-def _check_against_skeleton(bones, counts, lines, linenos, skeleton, path) -> None:
-    for name, count, line, lineno in zip(bones, counts, lines, linenos):
+def _separator(text: str | None) -> str:
+    return text if text and not text.strip(" \t") else " "
+
+
+def _number_style(block) -> dict:
+    """notation, digits and exponent width that write every value of `block` back unchanged."""
+    if block.values.size == 0:
+        return {}
+    max_sig = block.max_significant_digits()
+    if (
+        block.has_dot.all()
+        and not block.has_exp.any()
+        and np.all(block.decimals == block.decimals[0])
+        and max_sig <= 15
+        and block.decimals[0] <= 17
+    ):
+        return {"notation": "f", "digits": int(block.decimals[0])}
+    digits = max(6, max_sig) if max_sig <= 15 else 17
+    exp_digits = block.exp_digits[block.has_exp]
+    exponent_digits = 3 if exp_digits.size and exp_digits.min() >= 3 else 2
+    return {"notation": "g", "digits": digits, "exponent_digits": exponent_digits}
+
+
+def _parse_exact(data: bytes, path, encoding, skeleton=None, stacklevel: int = 2):
+    """Line by line: any valid layout, and the first fault of a damaged file with its line."""
+    parts = re.split(rb"(\r\n|\r|\n)", data)
+    lines = parts[0::2]
+    endings = parts[1::2]
+    n_lines = len(lines)
+    last_content = n_lines - 1
+    while last_content >= 0 and not lines[last_content].strip(WHITESPACE):
+        last_content -= 1
+
+    header: list[str] = []
+    i = 0
+    while i < n_lines:
+        stripped = lines[i].strip(WHITESPACE)
+        if _is_frame_line(stripped):
+            break
+        if stripped and stripped[:1] not in (b"#", b":"):
+            raise MocapFormatError(
+                f"expected a frame number, got {_show(stripped)}"
+                + (" (a bone line before the first frame number)" if not NUMBER.match(stripped.split()[0]) else ""),
+                path,
+                i + 1,
+            )
+        header.append(lines[i].decode(encoding))
+        i += 1
+    if i >= n_lines:
+        raise MocapFormatError("no frames: the file has header lines only", path, last_content + 1)
+    first_frame_line = i
+    header_newline = endings[0].decode() if header and endings else None
+    frame_newline = endings[i].decode() if i < len(endings) else "\n"
+    newline = next((endings[k].decode() for k in range(i + 1, len(endings)) if lines[k].strip(WHITESPACE)), frame_newline)
+
+    bones: list[str] | None = None
+    column: dict[bytes, int] = {}
+    counts: list[int] = []
+    first_lines: dict[str, int] = {}
+    separator = None
+    frame_numbers: list[int] = []
+    frame_rows: list[list] = []  # per frame: per bone (in column order) its value words
+    frame_linenos: list[list] = []
+    current: dict[bytes, tuple[int, list[bytes]]] = {}
+    current_number = current_line = None
+    truncated_at = None
+
+    def close_frame(next_line: int | None) -> None:
+        nonlocal bones, counts
+        if current_number is None:
+            return
+        if bones is None:
+            if not current:
+                raise MocapFormatError(f"frame {current_number} has no bone lines", path, current_line)
+            order = list(current)
+            bones = [b.decode(encoding) for b in order]
+            counts = [len(current[b][1]) for b in order]
+            column.update({b: k for k, b in enumerate(order)})
+            first_lines.update({bones[k]: current[b][0] for k, b in enumerate(order)})
+            if skeleton is not None:
+                _check_against_skeleton(bones, counts, first_lines, skeleton, path)
+        elif len(current) != len(column):
+            missing = [b.decode(encoding) for b in column if b not in current]
+            shown = ", ".join(repr(m) for m in missing[:5]) + (", ..." if len(missing) > 5 else "")
+            if next_line is None:
+                return  # the caller decides about a truncated last frame
+            raise MocapFormatError(
+                f"truncated frame {current_number}: {len(current)} of {len(column)} bones, "
+                f"missing {shown} (frame starts at line {current_line})",
+                path,
+                next_line,
+            )
+        rows, linenos = [], []
+        for b in column:
+            lineno, words = current[b]
+            rows.append(words)
+            linenos.append(lineno)
+        frame_rows.append(rows)
+        frame_linenos.append(linenos)
+        frame_numbers.append(current_number)
+
+    for i in range(first_frame_line, n_lines):
+        words = lines[i].split()
+        lineno = i + 1
+        if not words or words[0][:1] == b"#":
+            continue
+        if len(words) == 1 and _is_frame_line(words[0]):
+            close_frame(lineno)
+            if len(words[0].lstrip(b"0")) > len(str(MAX_FRAME_NUMBER)) or int(words[0]) > MAX_FRAME_NUMBER:
+                raise MocapFormatError(
+                    f"frame number {_show(words[0])[1:-1]} is out of range (> {MAX_FRAME_NUMBER})", path, lineno
+                )
+            number_ = int(words[0])
+            if frame_numbers:
+                previous = frame_numbers[-1]
+                if number_ == previous:
+                    raise MocapFormatError(f"duplicate frame number {number_}", path, lineno)
+                if number_ < previous:
+                    raise MocapFormatError(f"frame number {number_} out of order (after {previous})", path, lineno)
+                if number_ != previous + 1:
+                    raise MocapFormatError(
+                        f"frame numbers jump from {previous} to {number_} (frames must be consecutive)",
+                        path,
+                        lineno,
+                    )
+            current, current_number, current_line = {}, number_, lineno
+            continue
+        name = words[0]
+        if NUMBER.match(name):
+            raise MocapFormatError(f"expected a bone name or a frame number, got {_show(lines[i].strip())}", path, lineno)
+        if name in current:
+            raise MocapFormatError(
+                f"bone '{name.decode(encoding)}' appears twice in frame {current_number} "
+                f"(first at line {current[name][0]})",
+                path,
+                lineno,
+            )
+        values = words[1:]
+        if bones is not None:
+            k = column.get(name)
+            if k is None:
+                raise MocapFormatError(
+                    f"bone '{name.decode(encoding)}' is not among the first frame's bones", path, lineno
+                )
+            if len(values) != counts[k]:
+                if i == last_content and frame_numbers:
+                    truncated_at = lineno  # the file was cut inside this line
+                    break
+                raise MocapFormatError(
+                    f"bone '{name.decode(encoding)}' has {len(values)} values, expected {counts[k]}", path, lineno
+                )
+        elif separator is None and values:
+            raw = lines[i]
+            separator = raw[len(name) : raw.index(values[0], len(name))].decode("ascii", "replace")
+        current[name] = (lineno, values)
+
+    if bones is not None and current_number is not None and (truncated_at is not None or len(current) != len(column)):
+        warnings.warn(
+            f"{path}:{current_line}: last frame {current_number} is incomplete ({len(current)} of "
+            f"{len(column)} bones, the file ends at line {truncated_at or last_content + 1}); dropped",
+            stacklevel=stacklevel,
+        )
+        current_number = None
+    close_frame(None)
+    if bones is None:  # only possible when the single frame had no bones
+        raise MocapFormatError(f"frame {current_number} has no bone lines", path, current_line)
+
+    n_frames = len(frame_rows)
+    counts_arr = np.array(counts, dtype=np.int64)
+    tokens = [w for rows in frame_rows for words in rows for w in words]
+    token_lines = np.repeat(np.array(frame_linenos, dtype=np.int64).reshape(-1), np.tile(counts_arr, n_frames))
+    buf = padded_buffer(b" ".join(tokens))
+    starts, ends = token_bounds(buf)
+    block = parse_number_tokens(buf, starts, ends)
+    for k in np.flatnonzero(~block.ok):
+        raw = tokens[k]
+        block.store(k, number(raw, path, int(token_lines[k])), raw)
+    bad = np.flatnonzero(~(np.abs(block.values) <= MAX_ABS_VALUE))
+    if bad.size:
+        k = int(bad[0])
+        number(tokens[k], path, int(token_lines[k]))  # raises with the reason
+
+    last_ending = data[-1:]
+    style = AmcStyle(
+        **_number_style(block),
+        name_separator=_separator(separator),
+        newline=newline,
+        header_newline=header_newline if header_newline not in (None, newline) else None,
+        frame_newline=frame_newline if frame_newline != newline else None,
+        final_newline=last_ending in (b"\n", b"\r"),
+        encoding=encoding,
+    )
+    values = block.values.reshape(n_frames, int(counts_arr.sum()))
+    motion = Motion(bones, counts, values, np.array(frame_numbers, dtype=np.int64), header, path, style)
+    return motion, first_lines
+
+
+def _show(raw: bytes) -> str:
+    text = raw[:40].decode("latin-1")
+    return repr(text + ("..." if len(raw) > 40 else ""))
+
+
+def _check_against_skeleton(bones, counts, first_lines: dict, skeleton, path) -> None:
+    where = f" {skeleton.path}" if getattr(skeleton, "path", None) else ""
+    for name, count in zip(bones, counts):
         try:
             dof = skeleton.dof_of(name)
         except KeyError:
-            raise MocapFormatError(f"bone '{name}' is not in the skeleton", path, int(lineno)) from None
+            raise MocapFormatError(f"bone '{name}' is not in the skeleton{where}", path, first_lines.get(name)) from None
         if count != len(dof):
             raise MocapFormatError(
-                f"bone '{name}' has {count} values, the skeleton gives it {len(dof)} dof", path, int(lineno)
+                f"bone '{name}' has {count} values, the skeleton{where} gives it {len(dof)} dof ({' '.join(dof) or 'none'})",
+                path,
+                first_lines.get(name),
             )
 
 
-def format_amc(motion: Motion, digits: int = 6) -> str:
-    """AMC text with `digits` significant digits (CMU writes 6), LF line endings."""
-    out = list(motion.header)
-    columns = motion.columns()
-    fmt = f"%.{digits}g"
-    for f in range(motion.n_frames):
-        out.append(str(int(motion.frame_numbers[f])))
-        row = motion.values[f]
-        for bone in motion.bones:
-            out.append(bone + " " + " ".join(fmt % v for v in row[columns[bone]]))
-    return "\n".join(out) + "\n"
+# --------------------------------------------------------------------------- writing
+
+_FRAMES_PER_CHUNK = 4096
 
 
-def write_amc(motion: Motion, path: str | os.PathLike, digits: int = 6) -> None:
-    with open(path, "w", encoding="latin-1", newline="\n") as fh:
-        fh.write(format_amc(motion, digits))
+def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | None = None) -> str:
+    """AMC text of `motion`: header lines, then every frame in the source's bone order.
+
+    Numbers and line ends follow `style` (default: `motion.style`, what `read_amc` detected, so a
+    file read and written again keeps its precision). `digits` overrides with that many
+    significant digits (`%.<digits>g`).
+    """
+    style = style or getattr(motion, "style", None) or AmcStyle()
+    if digits is not None:
+        style = replace(style, notation="g", digits=int(digits))
+    values = np.asarray(motion.values, dtype=np.float64)
+    frames = np.asarray(motion.frame_numbers)
+    n_frames = values.shape[0] if values.ndim == 2 else -1
+    if values.ndim != 2 or values.shape[1] != sum(motion.counts) or frames.shape != (n_frames,):
+        raise ValueError(
+            f"inconsistent Motion: values {values.shape}, counts sum {sum(motion.counts)}, "
+            f"frame_numbers {frames.shape}"
+        )
+    if len(motion.bones) != len(motion.counts):
+        raise ValueError(f"inconsistent Motion: {len(motion.bones)} bones but {len(motion.counts)} counts")
+    if not np.all(np.isfinite(values)):
+        raise ValueError("cannot write non-finite values to an AMC file")
+
+    nl = style.newline
+    head = "".join(line + (style.header_newline or nl) for line in motion.header)
+    fmt = style.number_format
+    layout = ["%d", style.frame_newline or nl]
+    for bone, count in zip(motion.bones, motion.counts):
+        layout.append(bone.replace("%", "%%"))
+        if count:
+            layout.append(style.name_separator + " ".join([fmt] * count))
+        layout.append(nl)
+    template = "".join(layout)
+
+    pieces = [head]
+    for lo in range(0, n_frames, _FRAMES_PER_CHUNK):
+        hi = min(lo + _FRAMES_PER_CHUNK, n_frames)
+        rows = np.empty((hi - lo, values.shape[1] + 1))
+        rows[:, 0] = frames[lo:hi]
+        rows[:, 1:] = values[lo:hi]
+        pieces.append((template * (hi - lo)) % tuple(rows.ravel().tolist()))
+    text = "".join(pieces[1:])
+    if style.notation == "g" and style.exponent_digits != 2 and "e" in text:
+        text = _widen_exponents(text, values, motion.bones, style.exponent_digits)
+    text = head + text
+    if not style.final_newline and text.endswith(nl):
+        text = text[: -len(nl)]
+    return text
+
+
+def _widen_exponents(text: str, values: np.ndarray, bones, width: int) -> str:
+    """'1e-05' -> '1e-005' (width 3), as the Windows C library writes them."""
+    tiny = np.abs(values[values != 0])
+    plain = (
+        width == 3
+        and not any("e+" in b or "e-" in b for b in bones)
+        and (tiny.size == 0 or (tiny.min() >= 1e-99 and tiny.max() < 1e100))
+    )
+    if plain:  # every exponent has exactly two digits: a plain replace is enough (and fast)
+        return text.replace("e-", "e-0").replace("e+", "e+0")
+    return re.sub(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])", lambda m: f"e{m[1]}{m[2].zfill(width)}", text)
+
+
+def write_amc(motion: Motion, path: str | os.PathLike, digits: int | None = None, *, style: AmcStyle | None = None) -> None:
+    """Write `motion` as an AMC file (see `format_amc`)."""
+    chosen = style or getattr(motion, "style", None) or AmcStyle()
+    text = format_amc(motion, digits, style=chosen)
+    try:
+        data = text.encode(chosen.encoding)
+    except (UnicodeEncodeError, LookupError):
+        data = text.encode("utf-8")
+    with open(path, "wb") as fh:
+        fh.write(data)

@@ -1,8 +1,17 @@
 """Acclaim Skeleton File (ASF): read and write.
 
-The parsed `Skeleton` keeps everything needed to write the file back (header
-comments, units, documentation, bone order, hierarchy order), so a decoded
+The parsed `Skeleton` keeps everything needed to write the file back (header comments,
+units, documentation, bone order, hierarchy order, unknown bone keywords), so a decoded
 archive gives other ASF readers the file they expect.
+
+Accepted input: sections `:version`, `:name`, `:units` (mass, length, angle deg|rad),
+`:documentation`, `:root` (order, axis, position, orientation), `:bonedata` (begin/end
+blocks with id, name, direction, length, axis + order, dof in any order and subset, limits
+with `inf`), `:hierarchy` (begin, `parent child...` lines, end); `#` comments anywhere;
+CRLF, LF or CR line ends, mixed; tabs. Unknown sections are skipped with a warning naming
+file and line. Every fault raises `MocapFormatError` with file and line: malformed numbers,
+wrong value counts, a bone without `end`, duplicate bones, hierarchy lines naming unknown
+bones, bones with two parents, cycles, bones missing from the hierarchy.
 """
 
 from __future__ import annotations
@@ -15,10 +24,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MocapFormatError
-from .text import decode_text, number
+from .text import decode_text, integer, number, split_lines
+
+__all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "format_asf", "write_asf"]
 
 ROOT = "root"
 KNOWN_SECTIONS = {"version", "name", "units", "documentation", "root", "bonedata", "hierarchy"}
+DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz", "l")
+ROOT_CHANNELS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
 
 
 @dataclass
@@ -90,173 +103,299 @@ def read_asf(path: str | os.PathLike) -> Skeleton:
     path = os.fspath(path)
     with open(path, "rb") as fh:
         data = fh.read()
-    return parse_asf(data, path)
+    return _AsfParser(split_lines(decode_text(data, path)), path, stacklevel=4).parse()
 
 
 def parse_asf(data: bytes, path: str | None = None) -> Skeleton:
-    lines = decode_text(data, path).splitlines()
-    skel = Skeleton(path=path)
-    section = None
-    bone: Bone | None = None
-    bone_key = None  # last keyword inside a bone, for continuation lines of `limits`
-    root_seen = bonedata_seen = False
+    """Parse ASF bytes (`path` only names the source in messages and in `Skeleton.path`)."""
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    return _AsfParser(split_lines(decode_text(data, path)), path, stacklevel=4).parse()
 
-    def fail(message: str, lineno: int):
-        raise MocapFormatError(message, path, lineno)
 
-    for lineno, raw in enumerate(lines, start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        if line.startswith("#"):
-            if section is None:
-                skel.comments.append(raw.rstrip())
-            continue
-        if line.startswith(":"):
-            key, _, rest = line[1:].partition(" ")
-            key = key.lower()
-            rest = rest.strip()
-            if bone is not None:
-                fail(f"bone '{bone.name}' has no 'end' before section ':{key}'", lineno)
-            section = key
-            if key == "version":
-                skel.version = rest
-            elif key == "name":
-                skel.name = rest
-            elif key == "root":
-                root_seen = True
-            elif key == "bonedata":
-                bonedata_seen = True
-            elif key not in KNOWN_SECTIONS:
-                warnings.warn(f"{path}:{lineno}: unknown ASF section ':{key}' skipped", stacklevel=2)
-            continue
-        if section is None:
-            fail(f"text before the first ':section': {line[:40]!r}", lineno)
-        words = line.split()
-        if section == "units":
-            if len(words) != 2:
-                fail(f"units line needs 'name value', got {line!r}", lineno)
-            skel.units[words[0].lower()] = words[1]
-        elif section == "documentation":
-            skel.documentation.append(line)
-        elif section == "root":
-            key = words[0].lower()
-            if key == "order":
-                skel.root_order = tuple(w.upper() for w in words[1:])
-            elif key == "axis":
-                skel.root_axis = words[1].upper() if len(words) > 1 else "XYZ"
-            elif key in ("position", "orientation"):
-                values = [number(w, path, lineno) for w in words[1:]]
-                if len(values) != 3:
-                    fail(f"root {key} needs 3 numbers, got {len(values)}", lineno)
-                setattr(skel, f"root_{key}", np.array(values))
-            else:
-                fail(f"unknown root keyword {words[0]!r}", lineno)
-        elif section == "bonedata":
-            key = words[0].lower()
-            if key == "begin":
-                if bone is not None:
-                    fail(f"'begin' inside bone '{bone.name}' (missing 'end')", lineno)
-                bone, bone_key = Bone(name=""), None
-            elif key == "end":
-                if bone is None:
-                    fail("'end' without 'begin'", lineno)
-                if not bone.name:
-                    fail("bone without a name", lineno)
-                if bone.limits and len(bone.limits) != len(bone.dof):
-                    fail(f"bone '{bone.name}' has {len(bone.dof)} dof but {len(bone.limits)} limits", lineno)
-                skel.bones.append(bone)
-                bone = None
-            elif bone is None:
-                fail(f"{words[0]!r} outside a begin/end block", lineno)
-            else:
-                _bone_line(bone, key, words, line, path, lineno)
-                bone_key = key if key == "limits" else (bone_key if line.startswith("(") else key)
-                if line.startswith("(") and bone_key != "limits":
-                    fail("limits continuation without 'limits'", lineno)
-        elif section == "hierarchy":
-            key = words[0].lower()
-            if key in ("begin", "end"):
+class _AsfParser:
+    def __init__(self, lines: list[str], path: str | None, stacklevel: int):
+        self.stacklevel = stacklevel  # of warnings: the caller of read_asf / parse_asf
+        self.lines = lines
+        self.path = path
+        self.skel = Skeleton(path=path)
+        self.bone: Bone | None = None
+        self.bone_line = 0  # line of the open bone's 'begin'
+        self.bone_lines: dict[str, int] = {}  # bone name -> line of its 'name'
+        self.limits_open = False  # the previous bone line was 'limits' (or a continuation)
+        self.hierarchy_lines: list[int] = []
+        self.hierarchy_state = None  # None, 'open' after 'begin', 'closed' after 'end'
+        self.hierarchy_line = 0
+        self.seen: dict[str, int] = {}  # section -> first line
+
+    def fail(self, message: str, lineno: int | None):
+        raise MocapFormatError(message, self.path, lineno)
+
+    def num(self, word: str, lineno: int, what: str = "value") -> float:
+        return number(word, self.path, lineno, what=what)
+
+    def parse(self) -> Skeleton:
+        section = None
+        for lineno, raw in enumerate(self.lines, start=1):
+            line = raw.strip()
+            if not line:
                 continue
-            skel.hierarchy.append((words[0], words[1:]))
-    if bone is not None:
-        raise MocapFormatError(f"file ends inside bone '{bone.name}' (missing 'end')", path, len(lines))
-    if not lines or not any(l.strip() for l in lines):
-        raise MocapFormatError("empty file", path)
-    if not (root_seen and bonedata_seen):
-        raise MocapFormatError("not an ASF file: no ':root' and ':bonedata' sections", path)
-    _check_hierarchy(skel, path)
-    return skel
+            if line.startswith("#"):
+                if section is None:
+                    self.skel.comments.append(raw.rstrip())
+                continue
+            if line.startswith(":"):
+                section = self.start_section(line, lineno)
+                continue
+            if section is None:
+                self.fail(f"expected a ':section' or '#' comment, got {line[:40]!r}", lineno)
+            words = line.split()
+            handler = getattr(self, f"line_{section}", None)
+            if handler is not None:
+                handler(words, line, lineno)
+        self.finish(len(self.lines))
+        return self.skel
+
+    # ------------------------------------------------------------------ sections
+
+    def start_section(self, line: str, lineno: int) -> str:
+        words = line[1:].split(None, 1)
+        key = words[0].lower() if words else ""
+        rest = words[1].strip() if len(words) > 1 else ""
+        if self.bone is not None:
+            self.fail(f"bone '{self.bone.name or '?'}' (begin at line {self.bone_line}) has no 'end' before ':{key}'", lineno)
+        if self.hierarchy_state == "open":
+            self.fail(f"':hierarchy' (begin at line {self.hierarchy_line}) has no 'end' before ':{key}'", lineno)
+        if key in KNOWN_SECTIONS and key in self.seen:
+            self.fail(f"section ':{key}' appears twice (first at line {self.seen[key]})", lineno)
+        self.seen.setdefault(key, lineno)
+        if key == "version":
+            self.skel.version = rest
+        elif key == "name":
+            self.skel.name = rest
+        elif key not in KNOWN_SECTIONS:
+            warnings.warn(f"{self.path}:{lineno}: unknown ASF section ':{key}' skipped", stacklevel=self.stacklevel)
+            return "unknown"
+        elif key == "documentation" and rest:
+            self.skel.documentation.append(rest)
+        elif rest:
+            self.fail(f"unexpected text after ':{key}': {rest[:40]!r}", lineno)
+        return key
+
+    def line_version(self, words, line, lineno):
+        self.fail(f"unexpected line in ':version': {line[:40]!r}", lineno)
+
+    line_name = line_version
+
+    def line_units(self, words, line, lineno):
+        if len(words) != 2:
+            self.fail(f"units line needs 'name value', got {line[:40]!r}", lineno)
+        key, value = words[0].lower(), words[1]
+        if key == "angle":
+            if value.lower() not in ("deg", "rad", "degree", "degrees", "radian", "radians"):
+                self.fail(f"angle unit must be 'deg' or 'rad', got {value!r}", lineno)
+        else:
+            self.num(value, lineno, what=f"units {key}")
+        self.skel.units[key] = value
+
+    def line_documentation(self, words, line, lineno):
+        self.skel.documentation.append(line)
+
+    def line_root(self, words, line, lineno):
+        key = words[0].lower()
+        skel = self.skel
+        if key == "order":
+            order = tuple(w.upper() for w in words[1:])
+            bad = [c for c in order if c not in ROOT_CHANNELS]
+            if bad:
+                self.fail(f"unknown root channel {bad[0]!r} (expected TX TY TZ RX RY RZ)", lineno)
+            if len(set(order)) != len(order):
+                self.fail("root order names a channel twice", lineno)
+            skel.root_order = order
+        elif key == "axis":
+            if len(words) != 2 or sorted(words[1].upper()) != ["X", "Y", "Z"]:
+                self.fail(f"root axis must be an order of X, Y, Z, got {' '.join(words[1:])[:40]!r}", lineno)
+            skel.root_axis = words[1].upper()
+        elif key in ("position", "orientation"):
+            if len(words) != 4:
+                self.fail(f"root {key} needs 3 numbers, got {len(words) - 1}", lineno)
+            setattr(skel, f"root_{key}", np.array([self.num(w, lineno) for w in words[1:]]))
+        else:
+            self.fail(f"unknown root keyword {words[0]!r}", lineno)
+
+    def line_bonedata(self, words, line, lineno):
+        key = words[0].lower()
+        if key == "begin":
+            if self.bone is not None:
+                self.fail(f"'begin' inside bone '{self.bone.name or '?'}' (begin at line {self.bone_line}; missing 'end')", lineno)
+            if len(words) > 1:
+                self.fail(f"unexpected text after 'begin': {line[:40]!r}", lineno)
+            self.bone, self.bone_line, self.limits_open = Bone(name=""), lineno, False
+            return
+        bone = self.bone
+        if bone is None:
+            self.fail(f"{words[0]!r} outside a begin/end block", lineno)
+        if key == "end":
+            self.end_bone(lineno)
+            return
+        continuation = line.startswith("(")
+        if continuation and not self.limits_open:
+            self.fail("limits continuation line without 'limits'", lineno)
+        self.limits_open = key == "limits" or (continuation and self.limits_open)
+        if key == "name":
+            if len(words) != 2:
+                self.fail(f"bone name must be one word, got {' '.join(words[1:])[:40]!r}", lineno)
+            if bone.name:
+                self.fail(f"bone '{bone.name}' has a second name {words[1]!r}", lineno)
+            bone.name = words[1]
+            if bone.name == ROOT:
+                self.fail("a bone in ':bonedata' may not be called 'root'", lineno)
+            if bone.name in self.bone_lines:
+                self.fail(f"duplicate bone '{bone.name}' (first at line {self.bone_lines[bone.name]})", lineno)
+            self.bone_lines[bone.name] = lineno
+        elif key == "id":
+            if len(words) != 2:
+                self.fail(f"id needs 1 integer, got {len(words) - 1} values", lineno)
+            bone.id = integer(words[1], self.path, lineno, what="bone id")
+        elif key == "direction":
+            if len(words) != 4:
+                self.fail(f"direction needs 3 numbers, got {len(words) - 1}", lineno)
+            bone.direction = np.array([self.num(w, lineno) for w in words[1:]])
+        elif key == "length":
+            if len(words) != 2:
+                self.fail(f"length needs 1 number, got {len(words) - 1}", lineno)
+            bone.length = self.num(words[1], lineno)
+        elif key == "axis":
+            if len(words) not in (4, 5):
+                self.fail(f"axis needs 3 angles and an order, got {line[:40]!r}", lineno)
+            bone.axis = np.array([self.num(w, lineno) for w in words[1:4]])
+            order = words[4].upper() if len(words) == 5 else "XYZ"
+            if sorted(order) != ["X", "Y", "Z"]:
+                self.fail(f"axis order must be an order of X, Y, Z, got {words[4]!r}", lineno)
+            bone.axis_order = order
+        elif key == "dof":
+            dof = tuple(w.lower() for w in words[1:])
+            bad = [d for d in dof if d not in DOF_NAMES]
+            if bad:
+                self.fail(f"unknown dof {bad[0]!r} in bone '{bone.name or '?'}' (expected rx ry rz tx ty tz l)", lineno)
+            if len(set(dof)) != len(dof):
+                self.fail(f"bone '{bone.name or '?'}' names a dof twice", lineno)
+            if bone.dof:
+                self.fail(f"bone '{bone.name or '?'}' has a second 'dof' line", lineno)
+            bone.dof = dof
+        elif key == "limits" or continuation:
+            self.add_limits(bone, line[len(words[0]) :] if key == "limits" else line, lineno)
+        else:
+            bone.extra.append(line)
+
+    def add_limits(self, bone: Bone, text: str, lineno: int) -> None:
+        text = text.strip()
+        pairs = text.replace(")", ") ").split(")")
+        if not text or pairs[-1].strip():
+            self.fail(f"limits need '(min max)' pairs, got {text[:40]!r}", lineno)
+        for pair in pairs[:-1]:
+            pair = pair.strip()
+            if not pair.startswith("("):
+                self.fail(f"limits need '(min max)' pairs, got {text[:40]!r}", lineno)
+            lo_hi = pair[1:].split()
+            if len(lo_hi) != 2:
+                self.fail(f"limits need '(min max)' pairs, got {pair + ')'!r}", lineno)
+            lo, hi = (self.limit(w, lineno) for w in lo_hi)
+            if lo > hi:
+                self.fail(f"limit minimum {lo_hi[0]} is above maximum {lo_hi[1]}", lineno)
+            bone.limits.append((lo, hi))
+
+    def limit(self, word: str, lineno: int) -> float:
+        lowered = word.lower()
+        if lowered in ("inf", "+inf", "infinity", "+infinity"):
+            return math.inf
+        if lowered in ("-inf", "-infinity"):
+            return -math.inf
+        return self.num(word, lineno, what="limit")
+
+    def end_bone(self, lineno: int) -> None:
+        bone = self.bone
+        if not bone.name:
+            self.fail(f"bone (begin at line {self.bone_line}) has no name", lineno)
+        if bone.limits and len(bone.limits) != len(bone.dof):
+            self.fail(f"bone '{bone.name}' has {len(bone.dof)} dof but {len(bone.limits)} limits", lineno)
+        self.skel.bones.append(bone)
+        self.bone = None
+        self.limits_open = False
+
+    def line_hierarchy(self, words, line, lineno):
+        key = words[0].lower()
+        if key == "begin" and len(words) == 1:
+            if self.hierarchy_state is not None:
+                self.fail("second 'begin' in ':hierarchy'", lineno)
+            self.hierarchy_state, self.hierarchy_line = "open", lineno
+            return
+        if key == "end" and len(words) == 1:
+            if self.hierarchy_state != "open":
+                self.fail("'end' without 'begin' in ':hierarchy'", lineno)
+            self.hierarchy_state = "closed"
+            return
+        if self.hierarchy_state == "closed":
+            self.fail(f"text after the hierarchy's 'end': {line[:40]!r}", lineno)
+        self.skel.hierarchy.append((words[0], words[1:]))
+        self.hierarchy_lines.append(lineno)
+
+    def line_unknown(self, words, line, lineno):
+        pass
+
+    # ------------------------------------------------------------------ checks
+
+    def finish(self, last_line: int) -> None:
+        skel = self.skel
+        if self.bone is not None:
+            self.fail(f"file ends inside bone '{self.bone.name or '?'}' (begin at line {self.bone_line}; missing 'end')", last_line)
+        if self.hierarchy_state == "open":
+            self.fail(f"file ends inside ':hierarchy' (begin at line {self.hierarchy_line}; missing 'end')", last_line)
+        for section in ("root", "bonedata", "hierarchy"):
+            if section not in self.seen:
+                self.fail(f"not a complete ASF file: no ':{section}' section", last_line)
+        names = {b.name for b in skel.bones}
+        parent_of: dict[str, tuple[str, int]] = {}
+        for (parent, children), lineno in zip(skel.hierarchy, self.hierarchy_lines):
+            if parent != ROOT and parent not in names:
+                self.fail(f"hierarchy names unknown bone '{parent}'", lineno)
+            for child in children:
+                if child == ROOT:
+                    self.fail(f"'root' cannot be a child (of '{parent}'): cycle in ':hierarchy'", lineno)
+                if child not in names:
+                    self.fail(f"hierarchy names unknown bone '{child}'", lineno)
+                if child in parent_of:
+                    first_parent, first_line = parent_of[child]
+                    self.fail(
+                        f"bone '{child}' has two parents in ':hierarchy', '{first_parent}' (line {first_line}) and '{parent}'",
+                        lineno,
+                    )
+                parent_of[child] = (parent, lineno)
+        for bone in skel.bones:
+            if bone.name not in parent_of:
+                self.fail(f"bone '{bone.name}' is not in ':hierarchy'", self.bone_lines.get(bone.name))
+        # Every bone has one parent; a bone that does not lead back to root sits on a cycle.
+        for bone in skel.bones:
+            chain = [bone.name]
+            node = bone.name
+            while node != ROOT:
+                node = parent_of[node][0]
+                if node in chain:
+                    loop = chain[chain.index(node) :] + [node]
+                    self.fail(f"cycle in ':hierarchy': {' <- '.join(loop)}", parent_of[loop[0]][1])
+                chain.append(node)
 
 
-def _bone_line(bone: Bone, key: str, words: list[str], line: str, path, lineno: int) -> None:
-    if key == "name":
-        bone.name = words[1]
-    elif key == "id":
-        bone.id = int(number(words[1], path, lineno))
-    elif key == "direction":
-        bone.direction = np.array([number(w, path, lineno) for w in words[1:4]])
-        if len(words) != 4:
-            raise MocapFormatError(f"direction needs 3 numbers, got {len(words) - 1}", path, lineno)
-    elif key == "length":
-        bone.length = number(words[1], path, lineno)
-    elif key == "axis":
-        if len(words) not in (4, 5):
-            raise MocapFormatError("axis needs 3 angles and an order", path, lineno)
-        bone.axis = np.array([number(w, path, lineno) for w in words[1:4]])
-        bone.axis_order = words[4].upper() if len(words) == 5 else "XYZ"
-    elif key == "dof":
-        bone.dof = tuple(w.lower() for w in words[1:])
-        bad = [d for d in bone.dof if d not in ("rx", "ry", "rz", "tx", "ty", "tz", "l")]
-        if bad:
-            raise MocapFormatError(f"unknown dof {bad[0]!r} in bone '{bone.name}'", path, lineno)
-    elif key == "limits" or line.startswith("("):
-        text = line[len("limits"):] if key == "limits" else line
-        for pair in text.replace(")", " ").split("("):
-            if pair.strip():
-                lo_hi = pair.split()
-                if len(lo_hi) != 2:
-                    raise MocapFormatError(f"limits need '(min max)', got {line!r}", path, lineno)
-                bone.limits.append(tuple(_limit(w, path, lineno) for w in lo_hi))
-    else:
-        bone.extra.append(line)
-
-
-def _limit(word: str, path, lineno: int) -> float:
-    lowered = word.lower()
-    if lowered in ("inf", "+inf"):
-        return math.inf
-    if lowered == "-inf":
-        return -math.inf
-    return number(word, path, lineno)
-
-
-def _check_hierarchy(skel: Skeleton, path) -> None:
-    names = {b.name for b in skel.bones}
-    if len(names) != len(skel.bones):
-        raise MocapFormatError("duplicate bone name in :bonedata", path)
-    seen = {ROOT}
-    for parent, children in skel.hierarchy:
-        if parent not in names and parent != ROOT:
-            raise MocapFormatError(f"hierarchy names unknown bone '{parent}'", path)
-        for child in children:
-            if child not in names:
-                raise MocapFormatError(f"hierarchy names unknown bone '{child}'", path)
-            if child in seen:
-                raise MocapFormatError(f"bone '{child}' has two parents in :hierarchy", path)
-            seen.add(child)
-    orphans = names - seen
-    if orphans:
-        raise MocapFormatError(f"bone '{sorted(orphans)[0]}' is not in :hierarchy", path)
+# --------------------------------------------------------------------------- writing
 
 
 def format_asf(skel: Skeleton) -> str:
-    """ASF text for `skel`, in the source's order, LF line endings."""
+    """ASF text for `skel`, in the source's order, LF line endings; numbers written exactly."""
     out: list[str] = list(skel.comments)
     if skel.version is not None:
-        out.append(f":version {skel.version}")
+        out.append(f":version {skel.version}".rstrip())
     if skel.name is not None:
-        out.append(f":name {skel.name}")
+        out.append(f":name {skel.name}".rstrip())
     out.append(":units")
     out += [f"  {k} {v}" for k, v in skel.units.items()]
     if skel.documentation:
@@ -285,21 +424,27 @@ def format_asf(skel: Skeleton) -> str:
         out.append("  end")
     out.append(":hierarchy")
     out.append("  begin")
-    out += [f"    {parent} {' '.join(children)}" for parent, children in skel.hierarchy]
+    out += [f"    {parent} {' '.join(children)}".rstrip() for parent, children in skel.hierarchy]
     out.append("  end")
     return "\n".join(out) + "\n"
 
 
 def write_asf(skel: Skeleton, path: str | os.PathLike) -> None:
-    with open(path, "w", encoding="latin-1", newline="\n") as fh:
-        fh.write(format_asf(skel))
+    text = format_asf(skel)
+    try:
+        data = text.encode("latin-1")
+    except UnicodeEncodeError:
+        data = text.encode("utf-8")
+    with open(path, "wb") as fh:
+        fh.write(data)
 
 
 def _g(value: float) -> str:
+    """Shortest text that reads back as the same float ('inf' for limits)."""
+    value = float(value)
     if math.isinf(value):
         return "inf" if value > 0 else "-inf"
-    value = float(value)
-    return str(int(value)) if value.is_integer() and abs(value) < 1e15 else repr(value)
+    return str(int(value)) if value.is_integer() and abs(value) < 1e15 and not (value == 0 and math.copysign(1, value) < 0) else repr(value)
 
 
 def _numbers(values) -> str:

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import __version__
 from .classes import assign_classes
-from .clip import LoadedClip, channels_from, load_clips, skeleton_params
+from .clip import LoadedClip, channels_from, load_clips, pose_weights, skeleton_params
 from .codec import get_stage
 from .codec.entropy import decode_bytes, encode_bytes
 from .codec.lossless import decode_channels, encode_channels
@@ -47,7 +47,8 @@ class Settings:
     classes: str = "subject"
     split: list[float] | None = None  # forced R, P, T shares of error_cm
     dead_zone: float = 0.2
-    basis_bits: int = 12
+    basis_precision: float = 0.02  # basis rounding error per direction, as a share of error_cm
+    axis_weight_cm: float = 10.0  # weight of bone axis vectors against joint positions (clip.pose_weights)
     fps: float = 120.0
     lossless: bool = False
 
@@ -63,7 +64,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     skeleton_paths = sorted({s.asf for s in sources})
     skeleton_texts = [p.read_bytes().decode("latin-1") for p in skeleton_paths]
     representation = None if settings.lossless else settings.representation
-    clips = load_clips(sources, skeleton_paths, representation)
+    clips = load_clips(sources, skeleton_paths, representation, settings.axis_weight_cm)
     class_of = assign_classes(sources, settings.classes)
     class_names = sorted(set(class_of.values()))
 
@@ -180,6 +181,7 @@ class Archive:
                 name_ = self.settings.representation
                 poses, root = reconstruct(CodedClip.from_payload(blob), self._basis(row["class"]), self._transform,
                                           self.settings.dead_zone, row["frames"])
+                poses = poses / pose_weights(model, name_, poses.shape[1], self.settings.axis_weight_cm)
                 values = channels_from(model, name_, layout, poses, root, skeleton_params(model, name_, layout))
         except (ValueError, KeyError, IndexError, EOFError) as exc:
             raise ArchiveError(f"{name} ({row['path']}): damaged ({exc})", self.path) from exc

@@ -9,6 +9,7 @@ kinematics, against the original clip's joint positions.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -32,10 +33,16 @@ class LoadedClip:
     encoded: Encoded | None  # None in lossless mode: the channels are coded as they are
     representation_name: str | None
     positions: np.ndarray | None  # (F, J, 3) cm, original joint positions (lossy mode)
+    axis_weight_cm: float = 1.0
 
-    @property
+    @cached_property
+    def weights(self) -> np.ndarray:
+        return pose_weights(self.model, self.representation_name, self.encoded.poses.shape[1], self.axis_weight_cm)
+
+    @cached_property
     def poses(self) -> np.ndarray:
-        return self.encoded.poses
+        """The representation's poses, weighted (see `pose_weights`): the space the codec works in."""
+        return self.encoded.poses * self.weights
 
     @property
     def root(self) -> np.ndarray | None:
@@ -50,7 +57,8 @@ class LoadedClip:
 
         `final` rounds the channels as the AMC writer will (the source's number style), as on disk.
         """
-        values = channels_from(self.model, self.representation_name, self.layout, poses, root, self.encoded.params)
+        values = channels_from(self.model, self.representation_name, self.layout, poses / self.weights, root,
+                               self.encoded.params)
         if final:
             values = round_as_written(values, self.motion.style)
         decoded = forward(self.model, values, self.layout).positions
@@ -70,6 +78,19 @@ def round_as_written(values: np.ndarray, style: AmcStyle) -> np.ndarray:
     return np.round(values * scale) / scale
 
 
+def pose_weights(model: SkeletonModel, representation_name: str, width: int, axis_weight_cm: float) -> np.ndarray:
+    """Per-column weights of a pose: joint positions (cm) count 1, bone axis vectors (unit
+    vectors) count `axis_weight_cm`, the distance at which an axis error becomes a position
+    error. PCA and the uniform quantiser then spend bits where they move joints.
+    Channels (angles) are left unweighted.
+    """
+    weights = np.ones(width)
+    if representation_name != "channels":
+        n_positions = 3 * model.n_joints if representation_name == "positions" else 3 * (model.n_joints - 1)
+        weights[n_positions:] = axis_weight_cm
+    return weights
+
+
 def channels_from(model: SkeletonModel, representation_name: str, layout: ChannelLayout,
                   poses: np.ndarray, root: np.ndarray | None, params: dict) -> np.ndarray:
     """Decoded representation -> AMC channel values in `layout`."""
@@ -85,7 +106,8 @@ def skeleton_params(model: SkeletonModel, representation_name: str, layout: Chan
     return get_representation(representation_name).forward(model, rest).params
 
 
-def load_clips(sources: list[ClipSource], skeleton_paths: list, representation_name: str | None) -> list[LoadedClip]:
+def load_clips(sources: list[ClipSource], skeleton_paths: list, representation_name: str | None,
+               axis_weight_cm: float = 1.0) -> list[LoadedClip]:
     """Read every clip (checking it against its skeleton) and convert it to the representation."""
     skeletons: dict = {}
     clips = []
@@ -100,5 +122,5 @@ def load_clips(sources: list[ClipSource], skeleton_paths: list, representation_n
             encoded = get_representation(representation_name).forward(model, motion)
             positions = forward(model, motion.values, motion).positions
         clips.append(LoadedClip(source, skeleton_paths.index(source.asf), model, motion, encoded,
-                                representation_name, positions))
+                                representation_name, positions, axis_weight_cm))
     return clips

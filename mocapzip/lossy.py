@@ -29,30 +29,33 @@ MEAN_STEP_CM = 1e-3  # the class mean is kept finely: its error repeats on every
 
 @dataclass
 class ClassBasis:
-    """A class's mean pose and its first Q principal directions, as stored (quantised)."""
+    """A class's mean pose and its first Q principal directions, as stored (quantised).
+
+    Each direction j is stored on its own grid, steps[j]. A basis error d moves a pose by
+    d times the coefficient, so directions with small coefficients (small variance) can be
+    stored coarsely: `steps_for` makes that trade explicit.
+    """
 
     mean: np.ndarray  # (M,)
     components: np.ndarray  # (M, Q)
-    bits: int
+    steps: np.ndarray  # (Q,) quantiser step of each stored direction
+
+    @staticmethod
+    def steps_for(variances: np.ndarray, error_cm: float, precision: float) -> np.ndarray:
+        """Basis steps that add about `precision` x error_cm to a pose along each direction."""
+        return precision * error_cm / np.sqrt(np.maximum(variances, (precision * error_cm) ** 2))
 
     @classmethod
-    def fit(cls, accumulator: CovarianceAccumulator, q: int, bits: int) -> "ClassBasis":
-        pca = PcaBasis.fit(accumulator)
-        return cls.quantised(pca.mean, pca.components[:, :q], bits)
-
-    @classmethod
-    def quantised(cls, mean: np.ndarray, components: np.ndarray, bits: int) -> "ClassBasis":
+    def quantised(cls, mean: np.ndarray, components: np.ndarray, steps: np.ndarray) -> "ClassBasis":
         """Round mean and components to what the archive stores, so encoding sees the decoder's basis."""
-        basis = cls(mean, components, bits)
-        return cls.decode(basis.encode())
+        return cls.decode(cls(mean, components, np.asarray(steps, np.float32)).encode())
 
     def encode(self) -> bytes:
-        limit = 2 ** (self.bits - 1) - 1
-        scales = np.maximum(np.abs(self.components).max(axis=0), 1e-12) / limit if self.components.size else np.zeros(0)
-        ints = np.round(self.components / np.where(scales == 0, 1, scales)).astype(np.int64)
+        steps = self.steps.astype("<f4")
+        ints = np.round(self.components / steps.astype(np.float64)).astype(np.int64)
         out = io.BytesIO()
-        out.write(struct.pack("<III", self.mean.size, self.components.shape[1], self.bits))
-        out.write(scales.astype("<f4").tobytes())
+        out.write(struct.pack("<II", self.mean.size, self.components.shape[1]))
+        out.write(steps.tobytes())
         for blob in (encode_ints(np.round(self.mean / MEAN_STEP_CM).astype(np.int64)), encode_ints(ints)):
             out.write(struct.pack("<I", len(blob)))
             out.write(blob)
@@ -60,18 +63,20 @@ class ClassBasis:
 
     @classmethod
     def decode(cls, blob: bytes) -> "ClassBasis":
-        m, q, bits = struct.unpack_from("<III", blob, 0)
-        pos = 12
-        scales = np.frombuffer(blob, "<f4", q, pos).astype(np.float64)
+        m, q = struct.unpack_from("<II", blob, 0)
+        pos = 8
+        steps = np.frombuffer(blob, "<f4", q, pos)
         pos += 4 * q
         parts = []
         for _ in range(2):
             (n,) = struct.unpack_from("<I", blob, pos)
             parts.append(decode_ints(blob[pos + 4 : pos + 4 + n]))
             pos += 4 + n
+        if pos != len(blob):
+            raise ValueError("class basis has trailing bytes")
         mean = parts[0].astype(np.float64) * MEAN_STEP_CM
-        components = parts[1].reshape(m, q).astype(np.float64) * scales
-        return cls(mean, components, bits)
+        components = parts[1].reshape(m, q).astype(np.float64) * steps.astype(np.float64)
+        return cls(mean, components, steps.copy())
 
     @property
     def q(self) -> int:
@@ -130,7 +135,8 @@ class CodedClip:
 
 SEARCH_STRIDE = 4  # the search scores every 4th frame (30 Hz at 120 Hz); the final check scores all
 PCA_SHARES = (0.3, 0.5, 0.7)  # candidate shares of the budget for PCA; the rest goes to quantisation
-STEP_RANGE = (1e-4, 1e3)  # quantiser steps searched, in cm-equivalent units
+STEP_RANGE = (1e-4, 1e3)
+BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet the target  # quantiser steps searched, in cm-equivalent units
 
 _SHARED: dict = {}  # what forked workers read (clips are large: they are inherited, not pickled)
 
@@ -154,9 +160,17 @@ def encode_class(clips, transform, settings, jobs: int = 1):
         needed = np.array(_parallel(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
         best = None
         for k, share in enumerate(shares):
-            basis = ClassBasis.quantised(pca.mean, pca.components[:, : needed[:, k].max()], settings.basis_bits)
-            _SHARED["basis"] = basis
-            coded, errors = zip(*_parallel(_code_clip, range(len(clips)), jobs))
+            q = needed[:, k].max()
+            precision = settings.basis_precision
+            for _ in range(BASIS_REFINEMENTS):
+                steps = ClassBasis.steps_for(pca.variances[:q], settings.error_cm, precision)
+                basis = _SHARED["basis"] = ClassBasis.quantised(pca.mean, pca.components[:, :q], steps)
+                coded, errors = zip(*_parallel(_code_clip, range(len(clips)), jobs))
+                if max(e[0] for e in errors) <= target:
+                    break
+                precision /= 4  # the rounded basis alone costs too much error: store it finer
+            else:
+                raise RuntimeError(f"no clip coding met {target} cm; worst {max(e[0] for e in errors):.3f} cm")
             size = len(basis.encode()) + sum(len(c.payload()) for c in coded)
             if best is None or size < best[0]:
                 best = (size, basis, list(coded), list(errors))
