@@ -7,43 +7,15 @@ archive, I/O failure: one line on stderr, never a traceback) and 2 (usage).
 
 from __future__ import annotations
 
-import functools
 import json
 import os
-import sys
-import warnings
 
 import click
 
 from .. import __version__
-from ..formats.errors import MocapFormatError
-
-
-def _fail(message: str) -> None:
-    click.echo(f"mcz: error: {message}", err=True)
-    sys.exit(1)
-
-
-def reports_errors(command):
-    """Turn expected failures into one line on stderr and exit code 1."""
-
-    @functools.wraps(command)
-    def wrapper(*args, **kwargs):
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("always")
-                warnings.showwarning = lambda message, *a, **k: click.echo(f"mcz: warning: {message}", err=True)
-                return command(*args, **kwargs)
-        except MocapFormatError as exc:
-            _fail(str(exc))
-        except FileExistsError as exc:
-            _fail(f"{exc.filename or exc}: already exists (use -f/--force to overwrite)")
-        except OSError as exc:
-            _fail(f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc))
-        except KeyboardInterrupt:
-            _fail("interrupted; no output was left behind")
-
-    return wrapper
+from .bench import bench
+from .classify import classify
+from .errors import reports_errors
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -220,3 +192,7 @@ def test_archive(archive_path, quiet):
         count = len(opened.clips)
     if not quiet:
         click.echo(f"{archive_path}: OK ({count} clips)", err=True)
+
+
+main.add_command(bench)
+main.add_command(classify)

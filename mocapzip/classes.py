@@ -39,22 +39,31 @@ def _subject_name(clip: ClipSource) -> str:
 
 
 def _classes_from_table(clips: list[ClipSource], path: Path) -> dict[str, str]:
-    """CSV or TSV rows `clip path, class`; a clip path matches by its stored path or file name suffix.
+    table = read_class_table(path)
+    assigned = {}
+    for clip in clips:
+        name = class_in_table(clip, table)
+        if name is None:
+            raise MocapFormatError(f"clip '{clip.relpath}' has no class in the table", path)
+        assigned[clip.relpath] = name
+    return assigned
 
-    MANIFEST.tsv style files (a header with `file` and `class` columns) work as they are.
-    """
+
+def read_class_table(path) -> dict[str, str]:
+    """Rows `clip path, class` of a CSV or TSV file; a header naming `file` and `class`
+    columns (MANIFEST.tsv) is understood. Rows with an empty class are skipped."""
+    path = Path(path)
     if not path.is_file():
         raise MocapFormatError("class table not found", path)
-    text = path.read_text(encoding="utf-8", errors="replace")
-    dialect = "excel-tab" if "\t" in text.splitlines()[0] else "excel"
-    rows = list(csv.reader(text.splitlines(), dialect=dialect))
+    lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    if not lines:
+        raise MocapFormatError("class table is empty", path)
+    rows = list(csv.reader(lines, dialect="excel-tab" if "\t" in lines[0] else "excel"))
+    header = [h.strip().lower() for h in rows[0]]
     file_col, class_col, start = 0, 1, 0
-    header = [h.strip().lower() for h in rows[0]] if rows else []
     if "class" in header:
-        class_col = header.index("class")
-        file_col = header.index("file") if "file" in header else 0
-        start = 1
-    table: dict[str, str] = {}
+        class_col, file_col, start = header.index("class"), header.index("file") if "file" in header else 0, 1
+    table = {}
     for lineno, row in enumerate(rows[start:], start=start + 1):
         if not row or not row[0].strip() or row[0].startswith("#"):
             continue
@@ -62,10 +71,21 @@ def _classes_from_table(clips: list[ClipSource], path: Path) -> dict[str, str]:
             raise MocapFormatError("expected 'clip path, class'", path, lineno)
         if row[class_col].strip():
             table[row[file_col].strip().replace("\\", "/")] = row[class_col].strip()
-    assigned = {}
-    for clip in clips:
-        match = [cls for key, cls in table.items() if key == clip.relpath or key.endswith("/" + clip.relpath) or clip.relpath.endswith("/" + key)]
-        if not match:
-            raise MocapFormatError(f"clip '{clip.relpath}' has no class in the table", path)
-        assigned[clip.relpath] = match[0]
-    return assigned
+    return table
+
+
+def class_in_table(source: ClipSource, table: dict[str, str]) -> str | None:
+    """The class of a clip: the row whose path names it, the longest such path winning.
+
+    A row names a clip when it is the clip's stored path, a tail of the clip's file path
+    (`cmu/07/07_01.amc` in MANIFEST.tsv names data/cmu/07/07_01.amc), or ends with the
+    clip's stored path (a table written from another root).
+    """
+    full = source.amc.resolve().as_posix()
+    best = None
+    for key, name in table.items():
+        tail = key.lstrip("./")
+        if key == source.relpath or full == key or full.endswith("/" + tail) or key.endswith("/" + source.relpath):
+            if best is None or len(key) > len(best[0]):
+                best = (key, name)
+    return best[1] if best else None

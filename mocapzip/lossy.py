@@ -207,10 +207,17 @@ def _components_for_shares(index: int) -> list[int]:
 
 
 def _code_clip(index: int):
-    """The largest quantiser steps that keep this clip within budget, verified on every frame."""
-    clip = _SHARED["clips"][index]
-    basis, transform, settings = (_SHARED[k] for k in ("basis", "transform", "settings"))
-    target, dz = settings.error_cm, settings.dead_zone
+    settings = _SHARED["settings"]
+    return code_clip(_SHARED["clips"][index], _SHARED["basis"], _SHARED["transform"], settings.error_cm,
+                     settings.dead_zone, settings.split)
+
+
+def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None):
+    """The largest quantiser steps that keep this clip within `target`, verified on every frame.
+
+    Returns the coded clip and its achieved (mean, max) error. `split` (R, P, T shares)
+    forces the root track's share of the budget; otherwise one step serves both.
+    """
     n = clip.motion.n_frames
     pose_coef = transform.forward(basis.project(clip.poses))
     root_coef = None if clip.root is None else transform.forward(scale_root(clip.root))
@@ -228,8 +235,8 @@ def _code_clip(index: int):
             root = clip.root[sample]
         return clip.error(poses, root, sample)[0]
 
-    if settings.split and root_coef is not None:
-        r_share = settings.split[0] / sum(settings.split)
+    if split and root_coef is not None:
+        r_share = split[0] / sum(split)
         root_step, _ = largest_step(lambda s: error(1.0, s, exact="poses"), r_share * target, *STEP_RANGE)
         pose_step, _ = largest_step(lambda s: error(s, 1.0, exact="root"), (1 - r_share) * target, *STEP_RANGE)
     else:

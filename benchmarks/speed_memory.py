@@ -1,0 +1,133 @@
+"""Speed and peak memory of mcz, xz -9, zstd -19 and Hou et al. on the largest shared clips and the whole CMU set.
+
+    python benchmarks/speed_memory.py [--data ../shared/data] [--out DIR] [--whole cmu.json]
+
+* The three largest shared CMU clips: one `mcz bench` run (mcz at 1 cm and every baseline).
+* The whole shared CMU set: the report of `ratio_distortion.py` (`--whole`), or a new run.
+* mcz compress of one subject folder with the BLAS library's default threading and with one
+  thread (OPENBLAS_NUM_THREADS=1), to show what BLAS oversubscription costs on a busy machine.
+
+Every encode and decode of mcz, xz and zstd runs in its own child process: its peak memory is
+that process's `ru_maxrss` (wait4), its time excludes interpreter start-up. Hou et al. run in
+the bench process itself (no peak memory of their own).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = REPO.parent / "shared" / "data"
+BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def largest_clips(data: Path, count: int = 3) -> list[str]:
+    lines = (data / "MANIFEST.tsv").read_text(encoding="utf-8").splitlines()
+    header = lines[0].split("\t")
+    f, n = header.index("file"), header.index("frames")
+    rows = [line.split("\t") for line in lines[1:]]
+    amc = [(int(r[n]), r[f]) for r in rows if r[f].startswith("cmu/") and r[f].lower().endswith(".amc")]
+    return [p for _, p in sorted(amc, reverse=True)[:count]]
+
+
+def blas_threads(data: Path, log=print) -> dict:
+    """`mcz compress cmu/07` with the BLAS default and with one thread per process."""
+    from mocapzip.bench import run_measured
+
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, value in (("default", None), ("one thread", "1")):
+            env = {k: v for k, v in os.environ.items() if k not in BLAS_VARS}
+            if value:
+                env.update({k: value for k in BLAS_VARS})
+            argv = [sys.executable, "-c", "from mocapzip.cli.main import main; main()", "compress",
+                    str(data / "cmu" / "07"), "-o", str(Path(tmp) / f"{name[0]}.mcz"), "-q"]
+            log(f"$ {'OPENBLAS_NUM_THREADS=1 ' if value else ''}mcz compress $DATA/cmu/07 -o x.mcz -q")
+            result = run_measured(argv, env=env, echo=log)
+            out[name] = result
+            log(f"  {result['seconds']:.1f} s wall, peak RSS {result['peak_rss_mb']:.0f} MB")
+    return out
+
+
+def run(data: Path = DATA, out: Path = Path("."), whole: dict | None = None, jobs: int = 2, log=print,
+        quick: bool = False) -> dict:
+    sys.path.insert(0, str(Path(__file__).parent))
+    from ratio_distortion import bench_run
+
+    out.mkdir(parents=True, exist_ok=True)
+    clips = largest_clips(data, 1 if quick else 3)
+    largest = bench_run([*(str(data / c) for c in clips), "-e", "1", "-j", str(jobs), "-q"], out / "largest.json", log)
+    if whole is None:
+        whole = bench_run([str(data / "cmu"), "-e", "1", "-e", "0.5", "-j", str(jobs), "-q"], out / "cmu.json", log)
+    return {"largest": largest, "whole": whole, "blas": blas_threads(data, log), "largest_clips": clips}
+
+
+def _rows(report: dict) -> list[str]:
+    xz = next((r for r in report["runs"] if r["codec"] == "xz"), None)
+    rows = []
+    for run in report["runs"]:
+        o = run["overall"]
+        if not o:
+            continue
+        name = {"mcz": f"mcz {run['target_error_cm']:g} cm", "hou": f"Hou et al. per clip {run['target_error_cm']:g} cm",
+                "hou-shared": f"Hou et al. basis per subject {run['target_error_cm']:g} cm",
+                "xz": "xz -9", "zstd": "zstd -19"}[run["codec"]]
+        enc_vs = o["encode_fps"] / xz["overall"]["encode_fps"] if xz else float("nan")
+        dec_vs = o["decode_fps"] / xz["overall"]["decode_fps"] if xz else float("nan")
+        rss = (f"{o['encode_peak_rss_mb']:.0f} | {o['decode_peak_rss_mb']:.0f}"
+               if o.get("encode_peak_rss_mb") else "(in bench process) | (in bench process)")
+        rows.append(f"| {name} | {o['frames']:,} | {o['encode_seconds']:.1f} | {o['encode_fps']:,.0f} | {enc_vs:.2f} | "
+                    f"{o['decode_seconds']:.2f} | {o['decode_fps']:,.0f} | {dec_vs:.2f} | {rss} | {o['bytes_per_frame']:.2f} |")
+    return rows
+
+
+def markdown(results: dict) -> str:
+    out = []
+    head = ("| codec | frames | encode s | encode frames/s | x xz -9 | decode s | decode frames/s | x xz -9 "
+            "| encode peak RSS (MB) | decode peak RSS (MB) | bytes/frame |")
+    sep = "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    for key, title in (("largest", "Largest shared clips: " + ", ".join(Path(c).stem for c in results["largest_clips"])),
+                       ("whole", "Whole shared CMU set")):
+        report = results[key]
+        env = report["environment"]
+        out.append(f"**{title}** (`{report['command']}`; bench process: {report['process']['seconds']:.0f} s wall, "
+                   f"peak RSS {report['process']['peak_rss_mb']:.0f} MB; load average "
+                   f"{env['load_average_start'][0]:.1f} at start, {env['load_average_end'][0]:.1f} at end, "
+                   f"{env['cpus']} CPUs)")
+        out.append("")
+        out += [head, sep, *_rows(report), ""]
+    blas = results["blas"]
+    d, o = blas["default"], blas["one thread"]
+    out.append(f"**BLAS threads.** `mcz compress $DATA/cmu/07` (3,657 frames): {d['seconds']:.1f} s with the BLAS "
+               f"library's default threading, {o['seconds']:.1f} s with `OPENBLAS_NUM_THREADS=1` "
+               f"({d['seconds'] / o['seconds']:.2f} x), peak RSS {d['peak_rss_mb']:.0f} / {o['peak_rss_mb']:.0f} MB. "
+               "On this 2-CPU machine shared with other work, OpenBLAS threads inside each worker process "
+               "oversubscribe the CPUs (measured separately: a 93 x 93 `numpy.linalg.eigh` takes about 0.6 ms "
+               "with one thread and about 150 ms with the default). The benchmark commands therefore run with "
+               "`OPENBLAS_NUM_THREADS=OMP_NUM_THREADS=MKL_NUM_THREADS=1`.")
+    out.append("")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=DATA)
+    parser.add_argument("--out", type=Path, default=Path("bench-out"))
+    parser.add_argument("--whole", type=Path, help="a whole-CMU report from ratio_distortion.py (skips that run)")
+    parser.add_argument("-j", "--jobs", type=int, default=2)
+    args = parser.parse_args(argv)
+    whole = json.loads(args.whole.read_text()) if args.whole else None
+    if whole is not None and "process" not in whole:
+        parser.error("--whole needs a report written by ratio_distortion.py (it records the bench process)")
+    results = run(args.data, args.out, whole, args.jobs, log=lambda m: print(m, file=sys.stderr, flush=True))
+    print(markdown(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

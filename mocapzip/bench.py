@@ -1,0 +1,976 @@
+"""`mcz bench`: compress, decompress and measure, against baselines, in one report.
+
+What is measured, and how (the same text goes into every JSON report under "rules"):
+
+* Clips are what `mcz compress` would store: every AMC under the inputs, paired with
+  its skeleton (`mocapzip.inputs.find_clips`).
+* mcz runs are real archives. `mcz compress` and `mcz decompress` run in child
+  processes (so their peak memory is the child's `ru_maxrss`, and their time excludes
+  interpreter start-up), the decompressed AMC and ASF files are read back with
+  `mocapzip.formats` (`read_amc`, `read_asf`), run through forward kinematics and
+  compared with the originals. The codec's own error estimate is never used.
+* Bytes of a clip in an archive: its `clip/NNNNN` stream, plus its class's `class/NNNN`
+  stream shared among the clips of that class in proportion to frames, plus everything
+  else in the file (meta, skeletons, container overhead) shared among all clips in
+  proportion to frames. Clip bytes add up to the archive's size on disk exactly.
+  "Payload" is the clip's own stream only.
+* Ratios are reference bytes / compressed bytes, with three references: the AMC text
+  on disk; float32 channels (AMC values per frame x 4 bytes); float32 joint positions
+  (joints x 3 x 4 bytes per frame: 31 x 3 x 4 = 372 for CMU, Hou et al.'s definition).
+* Joint error: Euclidean distance (cm) of each joint in each frame between forward
+  kinematics of the original and of the decoded clip (Hou et al. eq. 11); mean over
+  joints and frames, 99th percentile and maximum over every joint of every frame.
+  Skin error: thesis eq. 3.1 on the faux mesh (`mocapzip.metrics.skin_error`).
+* Speed: frames / seconds. Encode: from AMC files on disk to compressed bytes on disk;
+  decode: from compressed bytes to AMC files on disk (mcz, xz, zstd). Hou et al.
+  decode to joint positions in memory (the codec has no AMC output); its encode time
+  includes parsing the AMC and forward kinematics but not its parameter search
+  (reported separately as `search_seconds`).
+* xz -9 / zstd -19: each AMC file compressed on its own (`lzma` preset 9, `zstandard`
+  level 19), like `xz -9 *.amc`; the skeleton files too, their bytes shared among the
+  clips using them in proportion to frames. Lossless, checked byte for byte.
+* Hou et al. 2015 (`mocapzip.baselines.hou`): codes joint positions only, so its
+  error is measured on joint positions directly (no AMC text, no skin error). For each
+  target error, each clip gets the parameters (L, k, Q) from a grid with the fewest
+  bytes that meet the target (`hou`: section IV, each clip coded alone with its own
+  basis). `hou-shared`: one basis per subject (skeleton), as mcz's default classes
+  share theirs (section V with K = 1 per subject): L and k chosen per subject for the
+  fewest bytes with every clip within the target, Q per clip; a clip's bytes are its
+  stream plus its share of the basis in proportion to frames.
+* `--classes none` (no PCA) is not an archive mode: the bench codes each clip with the
+  codec's own stages (representation, temporal transform, dead-zone quantiser, entropy
+  coder, step search) and an identity basis that costs nothing; bytes are the clip
+  payloads; errors still go through AMC text read back by `mocapzip.formats`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import json
+import lzma
+import os
+import platform
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+
+from . import __version__
+from .formats.errors import MocapFormatError
+from .inputs import ClipSource, find_clips
+from .progress import progress
+
+CODECS = ("mcz", "hou", "hou-shared", "xz", "zstd")
+XZ_PRESET = 9
+ZSTD_LEVEL = 19
+NO_PCA = "none"  # --classes none: the bench-only "PCA off" emulation
+CLASS_PER_CLIP = "clip"  # --classes clip: one PCA class per clip, in a real archive
+
+RULES = __doc__.split("What is measured, and how", 1)[1].split("\n", 2)[2].strip()
+
+
+class BenchError(MocapFormatError):
+    """A failure inside a benchmark step (a child process, a decode that does not match)."""
+
+
+@dataclass
+class BenchOptions:
+    inputs: list
+    errors: list = field(default_factory=lambda: [1.0])
+    representations: list = field(default_factory=lambda: ["aligned"])
+    transforms: list = field(default_factory=lambda: ["dct"])
+    classes: list = field(default_factory=lambda: ["subject"])
+    splits: list = field(default_factory=lambda: [None])
+    codecs: list = field(default_factory=lambda: list(CODECS))
+    asf: str | None = None
+    groups: str | None = None  # table clip -> motion class for the per-class report
+    jobs: int = 1
+    wavelet: str = "db4"
+    hou_grid: dict | None = None  # override of hou.GRID_L/K/Q (tests, quick runs)
+    quiet: bool = False
+    command: str | None = None  # how the run was invoked (default: the equivalent `mcz bench` command)
+
+
+@dataclass
+class Clip:
+    source: ClipSource
+    group: str
+    frames: int
+    amc_bytes: int
+    channels: int  # AMC values per frame
+    joints: int  # joint positions per frame (31 for CMU)
+
+    @property
+    def path(self) -> str:
+        return self.source.relpath
+
+    @property
+    def f32_channel_bytes(self) -> int:
+        return self.frames * self.channels * 4
+
+    @property
+    def f32_position_bytes(self) -> int:
+        return self.frames * self.joints * 3 * 4
+
+
+# ----------------------------------------------------------------------------- entry point
+
+
+def run_bench(options: BenchOptions) -> dict:
+    """Run every configuration of `options` on the same clips; return the report (JSON-ready)."""
+    started = time.time()
+    load_start = os.getloadavg() if hasattr(os, "getloadavg") else None
+    unknown = sorted(set(options.codecs) - set(CODECS))
+    if unknown:
+        raise MocapFormatError(f"unknown codec {unknown[0]!r}; choose from {', '.join(CODECS)}")
+    sources = find_clips(options.inputs, asf=options.asf)
+    if not sources:
+        raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, options.inputs)))
+    clips, models = _load_clips(sources, options)
+    runs = []
+    with tempfile.TemporaryDirectory(prefix="mcz-bench-") as tmp:
+        tasks = _tasks(options)
+        for task in progress(tasks, desc="bench", unit="run"):
+            kind = task["codec"]
+            if kind == "mcz" and task["classes"] == NO_PCA:
+                runs.append(_run_mcz_without_pca(task, clips, models, options))
+            elif kind == "mcz":
+                runs.append(_run_mcz(task, clips, models, options, Path(tmp)))
+            elif kind in ("xz", "zstd"):
+                runs.append(_run_lossless(kind, clips, options, Path(tmp)))
+            elif kind == "hou":
+                runs.extend(_run_hou(task["errors"], clips, models, options))
+            elif kind == "hou-shared":
+                runs.extend(_run_hou_shared(task["errors"], clips, models, options))
+    report = {
+        "tool": f"mocapzip {__version__}",
+        "command": options.command or command_line(options),
+        "git": _git_state(),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+        "seconds": time.time() - started,
+        "environment": _environment(load_start),
+        "inputs": [os.fspath(p) for p in options.inputs],
+        "rules": RULES,
+        "clips": [{"path": c.path, "group": c.group, "frames": c.frames, "amc_bytes": c.amc_bytes,
+                   "channels": c.channels, "joints": c.joints} for c in clips],
+        "runs": runs,
+    }
+    report["comparisons"] = compare(report)
+    return report
+
+
+def _tasks(options: BenchOptions) -> list[dict]:
+    tasks = []
+    if "mcz" in options.codecs:
+        for error, rep, transform, classes, split in itertools.product(
+                options.errors, options.representations, options.transforms, options.classes, options.splits):
+            tasks.append({"codec": "mcz", "error_cm": float(error), "representation": rep, "transform": transform,
+                          "classes": classes, "split": split})
+    for codec in ("xz", "zstd"):
+        if codec in options.codecs:
+            tasks.append({"codec": codec})
+    for codec in ("hou", "hou-shared"):
+        if codec in options.codecs:
+            tasks.append({"codec": codec, "errors": sorted({float(e) for e in options.errors}, reverse=True)})
+    return tasks
+
+
+# ----------------------------------------------------------------------------- clips
+
+
+def _load_clips(sources: list[ClipSource], options: BenchOptions):
+    from .formats.amc import read_amc
+    from .formats.asf import read_asf
+    from .skeleton import SkeletonModel
+
+    groups = _groups(sources, options.groups, options.inputs)
+    skeletons, models, clips = {}, {}, []
+    for source in progress(sources, desc="read", unit="clip"):
+        if source.asf not in skeletons:
+            skeletons[source.asf] = read_asf(source.asf)
+            models[source.asf] = SkeletonModel.from_asf(skeletons[source.asf])
+        motion = read_amc(source.amc, skeletons[source.asf])  # warnings (a dropped last frame) show once, here
+        clips.append(Clip(source, groups[source.relpath], motion.n_frames, os.path.getsize(source.amc),
+                          motion.values.shape[1], models[source.asf].n_joints))
+    if any(c.frames == 0 for c in clips):
+        raise MocapFormatError("clip has no frames", next(c.source.amc for c in clips if c.frames == 0))
+    return clips, models
+
+
+def _groups(sources: list[ClipSource], table, inputs) -> dict[str, str]:
+    """Motion class of each clip for the per-class report: `table` (CSV/TSV: file, class;
+    MANIFEST.tsv works), else a MANIFEST.tsv in or above an input folder, else the skeleton name."""
+    fallback = {s.relpath: (s.asf.stem if s.asf is not None else "all") for s in sources}
+    candidates = [Path(table)] if table else _find_manifests(inputs)
+    if table and not Path(table).is_file():
+        raise MocapFormatError("class table not found", table)
+    found: dict[str, str] = {}
+    for path in candidates:
+        entries = _read_table(path)
+        by_file = {(path.parent / key).resolve(): value for key, value in entries.items()}
+        for s in sources:
+            if s.relpath in found:
+                continue
+            value = by_file.get(s.amc.resolve())
+            if value is None:  # a table naming clips by stored path (or its tail)
+                value = next((v for k, v in entries.items()
+                              if k == s.relpath or k.endswith("/" + s.relpath) or s.relpath.endswith("/" + k)), None)
+            if value:
+                found[s.relpath] = value
+    return {s.relpath: found.get(s.relpath, fallback[s.relpath]) for s in sources}
+
+
+def _find_manifests(inputs) -> list[Path]:
+    out = []
+    for item in inputs:
+        path = Path(item).resolve()
+        for folder in [path if path.is_dir() else path.parent, *list((path if path.is_dir() else path.parent).parents)[:3]]:
+            candidate = folder / "MANIFEST.tsv"
+            if candidate.is_file() and candidate not in out:
+                out.append(candidate)
+                break
+    return out
+
+
+def _read_table(path: Path) -> dict[str, str]:
+    text = path.read_text(encoding="utf-8", errors="replace")
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
+    if not lines:
+        return {}
+    rows = list(csv.reader(lines, dialect="excel-tab" if "\t" in lines[0] else "excel"))
+    header = [h.strip().lower() for h in rows[0]]
+    file_col, class_col, start = 0, 1, 0
+    if "class" in header:
+        class_col, file_col, start = header.index("class"), header.index("file") if "file" in header else 0, 1
+    return {r[file_col].strip().replace("\\", "/"): r[class_col].strip()
+            for r in rows[start:] if len(r) > max(file_col, class_col) and r[class_col].strip()}
+
+
+def _original(clip: Clip, models):
+    """(model, motion, pose) of the original clip, read again (nothing is kept between runs)."""
+    from .formats.amc import read_amc
+    from .kinematics import forward
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # already shown once when the clips were loaded
+        motion = read_amc(clip.source.amc)
+    model = models[clip.source.asf]
+    return model, motion, forward(model, motion.values, motion)
+
+
+def _measure(clip: Clip, models, decoded_model, decoded_motion) -> tuple[dict, np.ndarray]:
+    """Errors of a decoded clip (a Motion read back from AMC text) against the original."""
+    from .kinematics import forward
+    from .metrics import joint_distances, skin_error
+
+    model, motion, pose = _original(clip, models)
+    if decoded_motion.n_frames != motion.n_frames or decoded_motion.values.shape[1] != motion.values.shape[1]:
+        raise BenchError(f"decoded clip has shape {decoded_motion.values.shape}, the original {motion.values.shape}",
+                         clip.source.amc)
+    decoded_pose = forward(decoded_model, decoded_motion.values, decoded_motion)
+    d = joint_distances(pose.positions, decoded_pose.positions)
+    return {**_error_stats(d), "skin_error": skin_error(model, pose, decoded_pose)}, d.astype(np.float32)
+
+
+def _error_stats(d: np.ndarray) -> dict:
+    return {"mean_error_cm": float(d.mean()), "p99_error_cm": float(np.percentile(d, 99)),
+            "max_error_cm": float(d.max())}
+
+
+# ----------------------------------------------------------------------------- child processes
+
+
+def _run_child(job: dict, quiet: bool) -> dict:
+    """Run one job in a fresh Python process; return its JSON answer plus its peak RSS (MB)."""
+    job = {**job, "quiet": quiet}
+    proc = subprocess.Popen([sys.executable, "-c", "from mocapzip.bench import _child_main; _child_main()"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    try:
+        proc.stdin.write(json.dumps(job).encode())
+        proc.stdin.close()
+        out = proc.stdout.read()
+        proc.stdout.close()
+    finally:
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+    lines = out.decode("utf-8", "replace").strip().splitlines()
+    if proc.returncode != 0 or not lines:
+        raise BenchError(f"benchmark step '{job['op']}' failed in its child process (exit code {proc.returncode})")
+    answer = json.loads(lines[-1])
+    if "error" in answer:
+        raise BenchError(answer["error"])
+    rss = usage.ru_maxrss / (1024 * 1024 if sys.platform == "darwin" else 1024)
+    return {**answer, "peak_rss_mb": rss}
+
+
+def _child_main() -> None:
+    """Entry of a child process: a JSON job on stdin, a JSON answer on stdout."""
+    from . import progress as progress_module
+
+    job = json.loads(sys.stdin.read())
+    progress_module.QUIET = job.get("quiet", False)
+    warnings.simplefilter("ignore")
+    try:
+        answer = _CHILD_OPS[job["op"]](job)
+    except MocapFormatError as exc:
+        answer = {"error": str(exc)}
+    sys.stdout.write(json.dumps(answer) + "\n")
+    sys.stdout.flush()
+
+
+def _child_compress(job: dict) -> dict:
+    from . import archive
+
+    settings = archive.Settings(**job["settings"])
+    start = time.perf_counter()
+    summary = archive.compress(job["inputs"], job["output"], settings, asf=job["asf"], force=True, jobs=job["jobs"])
+    return {"seconds": time.perf_counter() - start, "summary": summary}
+
+
+def _child_decompress(job: dict) -> dict:
+    from . import archive
+
+    start = time.perf_counter()
+    summary = archive.decompress(job["archive"], job["output"], force=True)
+    return {"seconds": time.perf_counter() - start, "summary": summary}
+
+
+def _child_lossless(job: dict) -> dict:
+    """Compress (or decompress) each file on its own, reading and writing files as a CLI would."""
+    codec, decode = job["codec"], job["decode"]
+    if codec == "xz":
+        encode_fn, decode_fn = (lambda b: lzma.compress(b, preset=XZ_PRESET)), lzma.decompress
+    else:
+        import zstandard
+
+        compressor, decompressor = zstandard.ZstdCompressor(level=ZSTD_LEVEL), zstandard.ZstdDecompressor()
+        encode_fn, decode_fn = compressor.compress, decompressor.decompress
+    function = decode_fn if decode else encode_fn
+    sizes = []
+    start = time.perf_counter()
+    for src, dst in job["files"]:
+        with open(src, "rb") as fh:
+            out = function(fh.read())
+        with open(dst, "wb") as fh:
+            fh.write(out)
+        sizes.append(len(out))
+    return {"seconds": time.perf_counter() - start, "sizes": sizes}
+
+
+_CHILD_OPS = {"compress": _child_compress, "decompress": _child_decompress, "lossless": _child_lossless}
+
+
+def run_measured(argv: list[str], env: dict | None = None, echo=None) -> dict:
+    """Run a command; return its exit code, wall seconds, peak RSS (MB) and what it wrote to stderr.
+
+    Its stdout is passed through; each stderr line also goes to `echo` (default: our stderr).
+    Peak RSS is the child's `ru_maxrss` from wait4: the largest resident set of the process or of
+    any worker process it waited for (forked workers share memory, so RSS is not summed).
+    """
+    echo = echo or (lambda line: print(line, file=sys.stderr, flush=True))
+    started = time.perf_counter()
+    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE)
+    lines = []
+    for raw in proc.stderr:
+        line = raw.decode("utf-8", "replace").rstrip("\n")
+        lines.append(line)
+        echo(line)
+    proc.stderr.close()
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return {"returncode": proc.returncode, "seconds": time.perf_counter() - started,
+            "peak_rss_mb": usage.ru_maxrss / (1024 * 1024 if sys.platform == "darwin" else 1024),
+            "stderr": lines}
+
+
+def mcz_command() -> list[str]:
+    """How to start `mcz bench` in a child process (with this interpreter, whatever PATH says)."""
+    return [sys.executable, "-c", "from mocapzip.cli.main import main; main()", "bench"]
+
+
+# ----------------------------------------------------------------------------- mcz
+
+
+def _transform_config(name: str, wavelet: str) -> dict:
+    return {"id": name, "wavelet": wavelet, "level": None} if name == "dwt" else {"id": name}
+
+
+def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: Path) -> dict:
+    from .archive import Archive
+    from .formats.amc import read_amc
+    from .formats.asf import read_asf
+    from .formats.mcz import ArchiveReader
+    from .skeleton import SkeletonModel
+
+    work = Path(tempfile.mkdtemp(dir=tmp))
+    classes = task["classes"]
+    if classes == CLASS_PER_CLIP:
+        table = work / "classes.csv"
+        table.write_text("".join(f"{c.path},{c.path}\n" for c in clips), encoding="utf-8")
+        classes = os.fspath(table)
+    settings = {"error_cm": task["error_cm"], "representation": task["representation"],
+                "transform": _transform_config(task["transform"], options.wavelet), "classes": classes,
+                "split": task["split"]}
+    path = work / "bench.mcz"
+    encoded = _run_child({"op": "compress", "inputs": [os.fspath(p) for p in options.inputs], "output": os.fspath(path),
+                          "settings": settings, "asf": options.asf, "jobs": options.jobs}, options.quiet)
+    decoded = _run_child({"op": "decompress", "archive": os.fspath(path), "output": os.fspath(work / "out")},
+                         options.quiet)
+    file_size = os.path.getsize(path)
+    by_path = {c.path: c for c in clips}
+    rows, distances = [], {}
+    with Archive(path) as opened:
+        sizes = opened.stream_sizes()
+        meta_rows, skeleton_names = opened.clips, [s["name"] for s in opened.meta["skeletons"]]
+    if sorted(r["path"] for r in meta_rows) != sorted(by_path):
+        raise BenchError("the archive does not hold the clips the bench found", path)
+    clip_streams = [sizes[f"clip/{i:05d}"] for i in range(len(meta_rows))]
+    with ArchiveReader(path) as reader:
+        parts = [_payload_parts(reader.read(f"clip/{i:05d}")) for i in range(len(meta_rows))]
+    class_frames: dict[int, int] = {}
+    for r in meta_rows:
+        class_frames[r["class"]] = class_frames.get(r["class"], 0) + r["frames"]
+    class_bytes = {k: sizes.get(f"class/{k:04d}", 0) for k in class_frames}
+    total_frames = sum(r["frames"] for r in meta_rows)
+    shared = file_size - sum(clip_streams) - sum(class_bytes.values())
+    out = work / "out"
+    for i, r in enumerate(progress(meta_rows, desc="measure", unit="clip")):
+        clip = by_path[r["path"]]
+        share = clip_streams[i] + class_bytes[r["class"]] * r["frames"] / class_frames[r["class"]] \
+            + shared * r["frames"] / total_frames
+        skeleton_file = out / PurePosixPath(r["path"]).parent / skeleton_names[r["skeleton"]]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            skeleton = read_asf(skeleton_file)
+            motion = read_amc(out / r["path"], skeleton)
+        errors, distances[clip.path] = _measure(clip, models, SkeletonModel.from_asf(skeleton), motion)
+        basis_share = class_bytes[r["class"]] * r["frames"] / class_frames[r["class"]]
+        rows.append({**_sizes(clip, share, clip_streams[i]), **parts[i], "basis_bytes": basis_share, **errors,
+                     "codec_reported_error_cm": r.get("error_cm")})
+    rows.sort(key=lambda row: row["path"])
+    shutil_rmtree(work)
+    speed = {"encode_seconds": encoded["seconds"], "decode_seconds": decoded["seconds"],
+             "encode_peak_rss_mb": encoded["peak_rss_mb"], "decode_peak_rss_mb": decoded["peak_rss_mb"]}
+    return _finish_run({"codec": "mcz", "label": _mcz_label(task), "target_error_cm": task["error_cm"],
+                        "settings": {**settings, "classes": task["classes"], "jobs": options.jobs},
+                        "archive_bytes": file_size, "shared_bytes": shared, "class_bytes": sum(class_bytes.values()),
+                        "error_measured_on": "AMC text written by mcz decompress, read back by mocapzip.formats"},
+                       rows, clips, distances, speed)
+
+
+def _payload_parts(blob: bytes) -> dict:
+    """Pose and root-track bytes inside a lossy clip stream (header `<ddB`, then length-prefixed parts)."""
+    try:
+        n = blob[16]
+        pos, sizes = 17, []
+        for _ in range(n):
+            (size,) = struct.unpack_from("<I", blob, pos)
+            sizes.append(size + 4)
+            pos += 4 + size
+        if pos != len(blob) or n not in (1, 2):
+            raise ValueError
+    except (IndexError, struct.error, ValueError):
+        return {"pose_bytes": None, "root_bytes": None}
+    return {"pose_bytes": sizes[0] + 17, "root_bytes": sizes[1] if n > 1 else 0}
+
+
+def shutil_rmtree(path: Path) -> None:
+    import shutil
+
+    shutil.rmtree(path, ignore_errors=True)
+
+
+def _mcz_label(task: dict) -> str:
+    parts = [f"mcz {task['error_cm']:g} cm", task["representation"], task["transform"], f"classes {task['classes']}"]
+    if task["split"]:
+        parts.append("split " + ",".join(f"{s:g}" for s in task["split"]))
+    return ", ".join(parts)
+
+
+def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOptions) -> dict:
+    """--classes none: each clip coded with the codec's stages and an identity basis (see the module doc)."""
+    from .archive import Settings
+    from .clip import channels_from, load_clips, skeleton_params
+    from .codec import get_stage
+    from .formats.amc import Motion, format_amc, parse_amc
+    from .lossy import ClassBasis, CodedClip, code_clip, reconstruct
+
+    transform = get_stage(_transform_config(task["transform"], options.wavelet))
+    dead_zone = Settings().dead_zone
+    rows, distances = [], {}
+    encode_seconds = decode_seconds = 0.0
+    for clip in progress(clips, desc="no PCA", unit="clip"):
+        start = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loaded = load_clips([clip.source], [clip.source.asf], task["representation"])[0]
+        basis = ClassBasis(np.zeros(loaded.poses.shape[1]), np.eye(loaded.poses.shape[1]), np.ones(loaded.poses.shape[1]))
+        coded, _ = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
+        payload = coded.payload()
+        middle = time.perf_counter()
+        model, layout = loaded.model, loaded.layout
+        poses, root = reconstruct(CodedClip.from_payload(payload), basis, transform, dead_zone, loaded.motion.n_frames)
+        poses = poses / getattr(loaded, "weights", 1.0)  # the codec's pose weights, when it has them
+        values = channels_from(model, task["representation"], layout, poses, root,
+                               skeleton_params(model, task["representation"], layout))
+        m = loaded.motion
+        text = format_amc(Motion(m.bones, m.counts, values, m.frame_numbers, m.header, clip.path))  # as decompress does
+        decode_seconds += time.perf_counter() - middle
+        encode_seconds += middle - start
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            decoded = parse_amc(text.encode("latin-1", "replace"), clip.path)
+        errors, distances[clip.path] = _measure(clip, models, models[clip.source.asf], decoded)
+        rows.append({**_sizes(clip, len(payload), len(payload)), **_payload_parts(payload), "basis_bytes": 0, **errors})
+    settings = {"error_cm": task["error_cm"], "representation": task["representation"],
+                "transform": _transform_config(task["transform"], options.wavelet), "classes": NO_PCA,
+                "split": task["split"]}
+    return _finish_run({"codec": "mcz", "label": _mcz_label(task), "target_error_cm": task["error_cm"],
+                        "settings": settings, "archive_bytes": None,
+                        "note": "no PCA: bench-only emulation with an identity basis (not an archive); bytes are "
+                                "clip payloads; speeds measured in process",
+                        "error_measured_on": "AMC text formatted by mocapzip.formats, read back by mocapzip.formats"},
+                       rows, clips, distances,
+                       {"encode_seconds": encode_seconds, "decode_seconds": decode_seconds,
+                        "encode_peak_rss_mb": None, "decode_peak_rss_mb": None})
+
+
+# ----------------------------------------------------------------------------- xz, zstd
+
+
+def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Path) -> dict:
+    work = Path(tempfile.mkdtemp(dir=tmp))
+    skeletons = sorted({c.source.asf for c in clips})
+    originals = [c.source.amc for c in clips] + skeletons
+    packed = [work / f"{i:05d}.{codec}" for i in range(len(originals))]
+    restored = [work / f"{i:05d}.out" for i in range(len(originals))]
+    encoded = _run_child({"op": "lossless", "codec": codec, "decode": False,
+                          "files": [[os.fspath(a), os.fspath(b)] for a, b in zip(originals, packed)]}, options.quiet)
+    decoded = _run_child({"op": "lossless", "codec": codec, "decode": True,
+                          "files": [[os.fspath(a), os.fspath(b)] for a, b in zip(packed, restored)]}, options.quiet)
+    for a, b in zip(originals, restored):
+        if Path(a).read_bytes() != Path(b).read_bytes():
+            raise BenchError(f"{codec} did not restore the file byte for byte", a)
+    sizes = encoded["sizes"]
+    skeleton_bytes = dict(zip(skeletons, sizes[len(clips):]))
+    frames_per_skeleton: dict = {}
+    for c in clips:
+        frames_per_skeleton[c.source.asf] = frames_per_skeleton.get(c.source.asf, 0) + c.frames
+    rows = []
+    for c, size in zip(clips, sizes):
+        share = size + skeleton_bytes[c.source.asf] * c.frames / frames_per_skeleton[c.source.asf]
+        rows.append({**_sizes(c, share, size), "mean_error_cm": 0.0, "p99_error_cm": 0.0, "max_error_cm": 0.0,
+                     "skin_error": 0.0})
+    shutil_rmtree(work)
+    name = {"xz": f"xz -{XZ_PRESET}", "zstd": f"zstd -{ZSTD_LEVEL}"}[codec]
+    return _finish_run({"codec": codec, "label": f"{name} (lossless, per AMC file)", "target_error_cm": 0.0,
+                        "settings": {"level": XZ_PRESET if codec == "xz" else ZSTD_LEVEL},
+                        "error_measured_on": "lossless: restored files compared byte for byte"},
+                       rows, clips, None,
+                       {"encode_seconds": encoded["seconds"], "decode_seconds": decoded["seconds"],
+                        "encode_peak_rss_mb": encoded["peak_rss_mb"], "decode_peak_rss_mb": decoded["peak_rss_mb"]})
+
+
+# ----------------------------------------------------------------------------- Hou et al.
+
+
+def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOptions) -> list[dict]:
+    from .baselines import hou
+    from .formats.amc import read_amc
+    from .kinematics import forward
+
+    grid = {"grid_l": hou.GRID_L, "grid_k": hou.GRID_K, "grid_q": hou.GRID_Q, **(options.hou_grid or {})}
+    chosen: dict[float, dict[str, dict]] = {t: {} for t in targets}
+    search_seconds = 0.0
+    for clip in progress(clips, desc="hou sweep", unit="clip"):
+        _, _, pose = _original(clip, models)
+        start = time.perf_counter()
+        points = hou.sweep(pose.positions, targets=targets, **grid)
+        search_seconds += time.perf_counter() - start
+        for t in targets:
+            chosen[t][clip.path] = hou.best(points, t)
+    runs = []
+    for t in targets:
+        rows, distances, missing = [], {}, []
+        encode_seconds = decode_seconds = 0.0
+        for clip in clips:
+            point = chosen[t][clip.path]
+            if point is None:
+                missing.append(clip.path)
+                continue
+            params = hou.HouParams(point["L"], point["k"], point["Q"])
+            start = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                motion = read_amc(clip.source.amc)
+            positions = forward(models[clip.source.asf], motion.values, motion).positions
+            blob = hou.encode(positions, params)
+            middle = time.perf_counter()
+            decoded = hou.decode(blob)
+            decode_seconds += time.perf_counter() - middle
+            encode_seconds += middle - start
+            d = np.linalg.norm(decoded - positions, axis=-1)
+            distances[clip.path] = d.astype(np.float32)
+            rows.append({**_sizes(clip, len(blob), len(blob)), **_error_stats(d), "skin_error": None,
+                         "hou": params.as_dict()})
+        run = _finish_run({"codec": "hou", "label": f"Hou et al. 2015, best (L, k, Q) per clip for mean error <= {t:g} cm",
+                           "target_error_cm": t,
+                           "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16,
+                                        "r": "0.1 ceil(L/50)", "entropy": "mocapzip.codec.entropy.encode_ints"},
+                           "search_seconds": search_seconds, "missing": missing,
+                           "error_measured_on": "joint positions directly (the codec stores positions, no rotations)"},
+                          rows, [c for c in clips if c.path not in missing], distances,
+                          {"encode_seconds": encode_seconds, "decode_seconds": decode_seconds,
+                           "encode_peak_rss_mb": None, "decode_peak_rss_mb": None})
+        runs.append(run)
+    return runs
+
+
+def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: BenchOptions) -> list[dict]:
+    from .baselines import hou
+
+    grid = {"grid_l": hou.GRID_L, "grid_k": hou.GRID_K, "grid_q": hou.GRID_Q, **(options.hou_grid or {})}
+    groups: dict = {}
+    for clip in clips:
+        groups.setdefault(clip.source.asf, []).append(clip)
+    rows = {t: [] for t in targets}
+    distances = {t: {} for t in targets}
+    missing = {t: [] for t in targets}
+    seconds = {t: [0.0, 0.0] for t in targets}
+    search_seconds = 0.0
+    for members in progress(list(groups.values()), desc="hou-shared", unit="subject"):
+        positions = [_original(c, models)[2].positions for c in members]
+        start = time.perf_counter()
+        found = hou.sweep_shared(positions, targets, **grid)
+        search_seconds += time.perf_counter() - start
+        group_frames = sum(c.frames for c in members)
+        for t in targets:
+            choice = found[t]
+            if choice is None:
+                missing[t] += [c.path for c in members]
+                continue
+            start = time.perf_counter()  # the timed encode: read, forward kinematics, basis, every clip
+            encoded = [_original(c, models)[2].positions for c in members]
+            basis_blob, streams = hou.encode_shared(encoded, choice["L"], choice["k"], [x["Q"] for x in choice["sequences"]])
+            middle = time.perf_counter()
+            basis = hou.decode_basis(basis_blob)
+            decoded = [hou.decode_clip(stream, basis) for stream in streams]
+            seconds[t][1] += time.perf_counter() - middle
+            seconds[t][0] += middle - start
+            for clip, original, stream, back, x in zip(members, encoded, streams, decoded, choice["sequences"]):
+                d = np.linalg.norm(back - original, axis=-1)
+                distances[t][clip.path] = d.astype(np.float32)
+                share = len(stream) + len(basis_blob) * clip.frames / group_frames
+                rows[t].append({**_sizes(clip, share, len(stream)), **_error_stats(d), "skin_error": None,
+                                "basis_bytes": len(basis_blob) * clip.frames / group_frames,
+                                "hou": {"L": choice["L"], "k": choice["k"], "Q": x["Q"]}})
+    runs = []
+    for t in targets:
+        kept = [c for c in clips if c.path not in missing[t]]
+        rows[t].sort(key=lambda r: r["path"])
+        runs.append(_finish_run(
+            {"codec": "hou-shared", "label": f"Hou et al. 2015, one basis per subject, mean error <= {t:g} cm",
+             "target_error_cm": t,
+             "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16, "groups": "subject",
+                          "r": "0.1 ceil(L/50)", "entropy": "mocapzip.codec.entropy.encode_ints"},
+             "search_seconds": search_seconds, "missing": missing[t],
+             "error_measured_on": "joint positions directly (the codec stores positions, no rotations)"},
+            rows[t], kept, distances[t],
+            {"encode_seconds": seconds[t][0], "decode_seconds": seconds[t][1],
+             "encode_peak_rss_mb": None, "decode_peak_rss_mb": None}))
+    return runs
+
+
+# ----------------------------------------------------------------------------- aggregation
+
+
+def _sizes(clip: Clip, share: float, payload: int) -> dict:
+    return {"path": clip.path, "group": clip.group, "frames": clip.frames, "bytes": share, "payload_bytes": payload,
+            "bytes_per_frame": share / clip.frames, "payload_bytes_per_frame": payload / clip.frames,
+            "ratio_amc": clip.amc_bytes / share, "ratio_f32_channels": clip.f32_channel_bytes / share,
+            "ratio_f32_positions": clip.f32_position_bytes / share}
+
+
+def _summary(rows: list[dict], clips: list[Clip], distances: dict | None) -> dict:
+    by_path = {c.path: c for c in clips}
+    members = [by_path[r["path"]] for r in rows]
+    frames = sum(c.frames for c in members)
+    size = sum(r["bytes"] for r in rows)
+    payload = sum(r["payload_bytes"] for r in rows)
+    out = {"clips": len(rows), "frames": frames, "bytes": size, "payload_bytes": payload,
+           "bytes_per_frame": size / frames, "payload_bytes_per_frame": payload / frames,
+           "amc_bytes": sum(c.amc_bytes for c in members),
+           "ratio_amc": sum(c.amc_bytes for c in members) / size,
+           "ratio_f32_channels": sum(c.f32_channel_bytes for c in members) / size,
+           "ratio_f32_positions": sum(c.f32_position_bytes for c in members) / size}
+    for key in ("pose_bytes", "root_bytes", "basis_bytes"):
+        if rows and all(r.get(key) is not None for r in rows):
+            out[key] = sum(r[key] for r in rows)
+            out[key + "_per_frame"] = out[key] / frames
+    weights = np.array([c.frames * c.joints for c in members], dtype=float)
+    out["mean_error_cm"] = float(np.dot([r["mean_error_cm"] for r in rows], weights) / weights.sum())
+    if distances:
+        d = np.concatenate([distances[r["path"]].ravel() for r in rows])
+        out["p99_error_cm"] = float(np.percentile(d, 99))
+    else:
+        out["p99_error_cm"] = max(r["p99_error_cm"] for r in rows)
+    out["max_error_cm"] = max(r["max_error_cm"] for r in rows)
+    skins = [r["skin_error"] for r in rows]
+    out["skin_error"] = (float(np.dot(skins, [c.frames for c in members]) / frames)
+                         if all(s is not None for s in skins) else None)
+    out["worst_clip_mean_error_cm"] = max(r["mean_error_cm"] for r in rows)
+    return out
+
+
+def _finish_run(run: dict, rows: list[dict], clips: list[Clip], distances, speed: dict) -> dict:
+    if not rows:
+        run.update(overall=None, classes={}, clips=[])
+        return run
+    overall = _summary(rows, clips, distances)
+    frames = overall["frames"]
+    overall["encode_seconds"], overall["decode_seconds"] = speed["encode_seconds"], speed["decode_seconds"]
+    overall["encode_fps"] = frames / speed["encode_seconds"] if speed["encode_seconds"] else None
+    overall["decode_fps"] = frames / speed["decode_seconds"] if speed["decode_seconds"] else None
+    overall["encode_peak_rss_mb"], overall["decode_peak_rss_mb"] = speed["encode_peak_rss_mb"], speed["decode_peak_rss_mb"]
+    groups = sorted({r["group"] for r in rows})
+    run["overall"] = overall
+    run["classes"] = {g: _summary([r for r in rows if r["group"] == g], clips, distances) for g in groups}
+    run["clips"] = rows
+    return run
+
+
+def compare(report: dict) -> list[dict]:
+    """Per target error: mcz bytes / Hou bytes per clip (median, worst), and mcz speed vs xz -9."""
+    runs = report["runs"]
+    xz = next((r for r in runs if r["codec"] == "xz" and r["overall"]), None)
+    out = []
+    for run in runs:
+        if run["codec"] != "mcz" or not run["overall"]:
+            continue
+        entry = {"mcz": run["label"], "target_error_cm": run["target_error_cm"]}
+        for codec, key in (("hou", "mcz_over_hou_bytes"), ("hou-shared", "mcz_over_hou_shared_bytes")):
+            hou_run = next((r for r in runs if r["codec"] == codec and r["target_error_cm"] == run["target_error_cm"]
+                            and r["overall"]), None)
+            if not hou_run:
+                continue
+            hou_bytes = {c["path"]: c["bytes"] for c in hou_run["clips"]}
+            ratios = sorted((c["bytes"] / hou_bytes[c["path"]], c["path"]) for c in run["clips"] if c["path"] in hou_bytes)
+            values = np.array([r for r, _ in ratios])
+            entry[key] = {
+                "clips": len(ratios), "median": float(np.median(values)), "worst": ratios[-1][0],
+                "worst_clip": ratios[-1][1], "best": ratios[0][0], "best_clip": ratios[0][1],
+                "mcz_smaller_in": int((values < 1).sum()),
+                "overall": run["overall"]["bytes"] / sum(hou_bytes[p] for _, p in ratios)
+                if len(ratios) == len(run["clips"]) else None}
+        if xz:
+            o, x = run["overall"], xz["overall"]
+            entry["vs_xz"] = {
+                "bytes": o["bytes"] / x["bytes"],
+                "encode_speed": (o["encode_fps"] / x["encode_fps"]) if o["encode_fps"] and x["encode_fps"] else None,
+                "decode_speed": (o["decode_fps"] / x["decode_fps"]) if o["decode_fps"] and x["decode_fps"] else None}
+        out.append(entry)
+    return out
+
+
+# ----------------------------------------------------------------------------- environment
+
+
+def _git_state() -> dict | None:
+    root = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if head.returncode != 0:
+        return None
+    return {"commit": head.stdout.strip(), "uncommitted_changes": bool(dirty.stdout.strip())}
+
+
+def _environment(load_start) -> dict:
+    import scipy
+
+    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
+            "platform": platform.platform(), "cpus": os.cpu_count(),
+            "load_average_start": list(load_start) if load_start else None,
+            "load_average_end": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+            "blas_threads": {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}}
+
+
+def command_line(options: BenchOptions) -> str:
+    """The `mcz bench` command that runs `options` (for reports: how to get these numbers again)."""
+    import shlex
+
+    args = ["mcz", "bench", *map(os.fspath, options.inputs)]
+    for flag, values, default in (("-e", [f"{e:g}" for e in options.errors], ["1"]),
+                                  ("-r", options.representations, ["aligned"]),
+                                  ("-t", options.transforms, ["dct"]), ("-c", options.classes, ["subject"]),
+                                  ("--split", [",".join(f"{x:g}" for x in s) for s in options.splits if s], [])):
+        if list(values) != default:
+            for v in values:
+                args += [flag, v]
+    if list(options.codecs) != list(CODECS):
+        args += ["--codec", ",".join(options.codecs)]
+    if "dwt" in options.transforms and options.wavelet != "db4":
+        args += ["--wavelet", options.wavelet]
+    for flag, value in (("--groups", options.groups), ("--asf", options.asf)):
+        if value:
+            args += [flag, os.fspath(value)]
+    args += ["-j", str(options.jobs)]
+    return shlex.join(args)
+
+
+# ----------------------------------------------------------------------------- output
+
+
+CSV_COLUMNS = ["run", "codec", "label", "target_error_cm", "level", "name", "clips", "frames", "bytes", "payload_bytes",
+               "bytes_per_frame", "payload_bytes_per_frame", "ratio_amc", "ratio_f32_channels", "ratio_f32_positions",
+               "mean_error_cm", "p99_error_cm", "max_error_cm", "skin_error", "encode_fps", "decode_fps",
+               "encode_peak_rss_mb", "decode_peak_rss_mb", "hou_L", "hou_k", "hou_Q"]
+
+
+def to_csv(report: dict) -> str:
+    """One row per run and level: overall, each class, each clip."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, CSV_COLUMNS, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for i, run in enumerate(report["runs"]):
+        if not run["overall"]:
+            continue
+        base = {"run": i, "codec": run["codec"], "label": run["label"], "target_error_cm": run["target_error_cm"]}
+        writer.writerow({**base, "level": "overall", "name": "all", **_rounded(run["overall"])})
+        for name, summary in run["classes"].items():
+            writer.writerow({**base, "level": "class", "name": name, **_rounded(summary)})
+        for row in run["clips"]:
+            hou_params = row.get("hou") or {}
+            writer.writerow({**base, "level": "clip", "name": row["path"], "clips": 1, **_rounded(row),
+                             "hou_L": hou_params.get("L"), "hou_k": hou_params.get("k"), "hou_Q": hou_params.get("Q")})
+    return buf.getvalue()
+
+
+def _rounded(d: dict) -> dict:
+    return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in d.items()}
+
+
+def format_text(report: dict, per_clip: bool = False) -> str:
+    """The terminal report: per run, overall and per class (and per clip on request)."""
+    lines = []
+    head = (f"{'':<22} {'clips':>5} {'frames':>8} {'B/frame':>8} {'payload':>8} {'xAMC':>7} {'xf32ch':>7} "
+            f"{'xf32pos':>7} {'mean cm':>8} {'p99 cm':>7} {'max cm':>7} {'skin':>7}")
+    for run in report["runs"]:
+        lines.append("")
+        lines.append(f"== {run['label']}")
+        if not run["overall"]:
+            lines.append("   no clip met the target")
+            continue
+        o = run["overall"]
+        speed = []
+        if o.get("encode_fps"):
+            speed.append(f"encode {o['encode_fps']:,.0f} frames/s")
+        if o.get("decode_fps"):
+            speed.append(f"decode {o['decode_fps']:,.0f} frames/s")
+        if o.get("encode_peak_rss_mb"):
+            speed.append(f"peak RSS {o['encode_peak_rss_mb']:.0f} MB encode, {o['decode_peak_rss_mb']:.0f} MB decode")
+        if speed:
+            lines.append("   " + ", ".join(speed))
+        lines.append("   errors measured on: " + run["error_measured_on"])
+        lines.append(head)
+        lines.append(_text_row("overall", o))
+        for name, summary in run["classes"].items():
+            lines.append(_text_row(f"  {name}", summary))
+        if per_clip:
+            for row in run["clips"]:
+                extra = " L={L} k={k} Q={Q}".format(**row["hou"]) if row.get("hou") else ""
+                lines.append(_text_row(f"    {row['path']}", {**row, "clips": 1}) + extra)
+        if run.get("missing"):
+            lines.append(f"   {len(run['missing'])} clips met no grid point (left out): {', '.join(run['missing'][:5])}")
+    for c in report["comparisons"]:
+        lines.append("")
+        text = f"-- {c['mcz']}:"
+        for key, name in (("mcz_over_hou_bytes", "Hou"), ("mcz_over_hou_shared_bytes", "Hou (one basis per subject)")):
+            if key in c:
+                h = c[key]
+                text += (f" mcz bytes / {name} bytes per clip at equal target error: median {h['median']:.3f}, "
+                         f"worst {h['worst']:.3f} ({h['worst_clip']}); mcz smaller in {h['mcz_smaller_in']} of "
+                         f"{h['clips']}.")
+        if "vs_xz" in c:
+            v = c["vs_xz"]
+            text += f" vs xz -9: {v['bytes']:.4f} x the bytes"
+            if v["encode_speed"]:
+                text += f", {v['encode_speed']:.2f} x the encode speed, {v['decode_speed']:.2f} x the decode speed"
+            text += "."
+        lines.append(text)
+    return "\n".join(lines).lstrip("\n")
+
+
+def _text_row(name: str, s: dict) -> str:
+    skin = f"{s['skin_error']:>7.2f}" if s.get("skin_error") is not None else f"{'-':>7}"
+    name = name if len(name) <= 22 else name[:21] + "…"
+    return (f"{name:<22} {s.get('clips', 1):>5} {s['frames']:>8} {s['bytes_per_frame']:>8.2f} "
+            f"{s['payload_bytes_per_frame']:>8.2f} {s['ratio_amc']:>7.0f} {s['ratio_f32_channels']:>7.1f} "
+            f"{s['ratio_f32_positions']:>7.1f} {s['mean_error_cm']:>8.3f} {s['p99_error_cm']:>7.2f} "
+            f"{s['max_error_cm']:>7.2f} {skin}")
+
+
+def plot(report: dict, path) -> None:
+    """Ratio-distortion curves: compression ratio (vs AMC text) against mean joint error."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        import matplotlib.ticker
+    except ImportError:
+        raise MocapFormatError("--plot needs matplotlib: pip install 'mocapzip[plot]'") from None
+    runs = [r for r in report["runs"] if r["overall"]]
+    groups = sorted({g for r in runs for g in r["classes"]})
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
+    series: dict[str, list] = {}
+    for r in runs:
+        if r["codec"] in ("mcz", "hou", "hou-shared"):
+            key = {"mcz": "mcz " + r["label"].split(", ", 1)[-1], "hou": "Hou et al. 2015 (best L, k, Q per clip)",
+                   "hou-shared": "Hou et al. 2015 (one basis per subject)"}[r["codec"]]
+            series.setdefault(key, []).append(r)
+    markers = itertools.cycle("os^Dv<>p")
+    for name, members in series.items():
+        members.sort(key=lambda r: r["target_error_cm"])
+        marker = next(markers)
+        axes[0].plot([r["overall"]["mean_error_cm"] for r in members], [r["overall"]["ratio_amc"] for r in members],
+                     marker=marker, label=name)
+        colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+        for j, g in enumerate(groups):
+            pts = [(r["classes"][g]["mean_error_cm"], r["classes"][g]["ratio_amc"]) for r in members if g in r["classes"]]
+            if pts:
+                axes[1].plot(*zip(*pts), marker=marker, color=colours[j % len(colours)],
+                             linestyle="-" if name.startswith("mcz") else ("--" if "per clip" in name else ":"),
+                             label=g if name == next(iter(series)) else None)
+    for r in runs:
+        if r["codec"] in ("xz", "zstd"):
+            y = r["overall"]["ratio_amc"]
+            axes[0].axhline(y, linestyle=":", color="grey" if r["codec"] == "xz" else "black")
+            axes[0].annotate(f"{r['label'].split(' (')[0]} (lossless): {y:.2f} x", (0.0, y), textcoords="offset points",
+                             xytext=(4, 4 if r["codec"] == "xz" else -11), fontsize=8)
+    axes[0].set_title(f"all clips ({runs[0]['overall']['clips'] if runs else 0}), one archive per run")
+    axes[1].set_title("per motion class\n(solid: mcz; dashed: Hou per clip; dotted: Hou, basis per subject)", fontsize=10)
+    for ax in axes:
+        ax.set_xlabel("mean joint error (cm)")
+        ax.set_ylabel("compression ratio vs AMC text")
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xlim(left=0)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    axes[1].legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
