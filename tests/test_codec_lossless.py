@@ -154,9 +154,7 @@ def read_amc_tokens(path):
     return np.array(frames)
 
 
-def test_real_cmu_file():
-    if not REAL_FILE.exists():
-        pytest.skip(f"real data not found at {REAL_FILE}")
+def test_real_cmu_file(shared_data):  # the fixture fails, never skips, when the data is missing
     tokens = read_amc_tokens(REAL_FILE)
     values = parse(tokens)
     blob = encode_channels(values)
