@@ -10,9 +10,7 @@
    most-voted class is the true one.
 2. HDM05, 11 classes x 3 actors: train on two actors, test on the third (three folds).
 3. `--classes auto` against `single` and `subject`: bytes per frame of real archives
-   (`mocapzip.archive.compress`) on a mixed subset. When the archive does not know
-   `auto` yet, the automatic classes are written to a class table and compressed with
-   it (same classes, same archive but for the settings string).
+   (`mocapzip.archive.compress`) on a mixed subset.
 
 Classes and clips come from MANIFEST.tsv (`class` column). Writes a Markdown page (and,
 with --json, every report). Each number on the page is from this run.
@@ -171,21 +169,14 @@ def hdm_sections(data: Path, results: dict) -> list[str]:
 
 
 def compress_subset(data: Path, mode: str, work: Path, jobs: int, error_cm: float = 1.0) -> dict:
-    """One real archive of COMPRESSION_SET with --classes `mode` (auto via a class table if need be)."""
+    """One real archive of COMPRESSION_SET with --classes `mode`."""
     from mocapzip import archive, progress
-    from mocapzip.formats.errors import MocapFormatError
 
     progress.QUIET = True
     inputs = [data / p for p in COMPRESSION_SET]
     out = work / f"{mode.replace(':', '_')}.mcz"
     settings = archive.Settings(error_cm=error_cm, classes=mode)
-    plan = None
-    try:
-        summary = archive.compress(inputs, out, settings, force=True, jobs=jobs)
-    except MocapFormatError as exc:
-        if not mode.startswith("auto") or "unknown --classes" not in str(exc):
-            raise
-        summary, plan = _compress_auto_via_table(inputs, out, settings, jobs, work)
+    summary = archive.compress(inputs, out, settings, force=True, jobs=jobs)
     with archive.Archive(out) as opened:
         meta = opened.meta
         sizes = opened.stream_sizes()
@@ -193,36 +184,8 @@ def compress_subset(data: Path, mode: str, work: Path, jobs: int, error_cm: floa
     summary["members"] = {c["name"]: [r["path"] for r in meta["clips"] if r["class"] == i]
                           for i, c in enumerate(meta["classes"])}
     summary["stream_bytes"] = {k: sum(v for n, v in sizes.items() if n.split("/")[0] == k) for k in ("class", "clip")}
-    summary["auto"] = meta.get("auto_classes") or plan
+    summary["auto"] = meta.get("auto_classes")
     return summary
-
-
-def _compress_auto_via_table(inputs, out, settings, jobs, work):
-    """`--classes auto` before archive.compress knows it: the same classes through a class table."""
-    from mocapzip import archive
-    from mocapzip.autoclass import auto_classes, parse_auto
-    from mocapzip.clip import load_clips
-    from mocapzip.inputs import find_clips
-
-    sources = find_clips(inputs)
-    paths = sorted({s.asf for s in sources})
-    try:
-        clips = load_clips(sources, paths, settings.representation, settings.axis_weight_cm)
-    except AttributeError:
-        clips = load_clips(sources, paths, settings.representation)
-    report: dict = {}
-    started = time.perf_counter()
-    names = auto_classes(clips, parse_auto(settings.classes), settings, jobs=jobs, report=report)
-    planning = time.perf_counter() - started
-    table = work / f"{out.stem}.csv"
-    table.write_text("".join(f"{path},{name}\n" for path, name in names.items()))
-    settings.classes = str(table)
-    summary = archive.compress(inputs, out, settings, force=True, jobs=jobs)
-    summary["seconds"] += planning
-    plan = [{k: g[k] for k in ("clips", "k", "method", "estimated_bytes")} for g in report["groups"]]
-    plan[0]["planning_seconds"] = planning
-    plan[0]["candidates"] = report["groups"][0]["candidates"]
-    return summary, plan
 
 
 def compression_sections(data: Path, results: dict, jobs: int) -> list[str]:

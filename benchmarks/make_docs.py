@@ -43,6 +43,10 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="a small subset, to check the pipeline; the page then says it is not the real run")
     args = parser.parse_args(argv)
+    try:  # the curves need it: fail now, not after the long whole-set run
+        import matplotlib  # noqa: F401
+    except ImportError:
+        parser.error("the plots need matplotlib: pip install -e '.[plot]'")
 
     from mocapzip import __version__
     from mocapzip.bench import RULES, _git_state

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import functools
+import signal
 import sys
+import threading
 import warnings
 
 import click
@@ -16,11 +18,21 @@ def _fail(message: str) -> None:
     sys.exit(1)
 
 
+def _terminate(signum, frame):
+    raise KeyboardInterrupt("SIGTERM")
+
+
 def reports_errors(command):
-    """Turn expected failures into one line on stderr and exit code 1."""
+    """Turn expected failures into one line on stderr and exit code 1.
+
+    SIGTERM is handled like Ctrl-C (KeyboardInterrupt), so both unwind through the same
+    clean-up: writers remove their temporary files and no partial output is left.
+    """
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
+        main_thread = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("always")
@@ -32,7 +44,10 @@ def reports_errors(command):
             _fail(f"{exc.filename or exc}: already exists (use -f/--force to overwrite)")
         except OSError as exc:
             _fail(f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc))
-        except KeyboardInterrupt:
-            _fail("interrupted; no output was left behind")
+        except KeyboardInterrupt as exc:
+            _fail(f"interrupted ({exc.args[0] if exc.args else 'SIGINT'}); no partial file was left behind")
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
     return wrapper

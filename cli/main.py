@@ -80,7 +80,11 @@ def _summary_line(s: dict) -> str:
 @click.option("--wavelet", default="db4", show_default=True, help="PyWavelets wavelet name for --transform dwt.")
 @click.option("--level", type=click.IntRange(min=1), default=None, help="DWT levels (default: as many as the clip allows).")
 @click.option("-c", "--classes", default="subject", show_default=True,
-              help="Clips sharing one PCA basis: single, subject (one per skeleton) or FILE.csv (clip path, class).")
+              help="Clips sharing one PCA basis: single, subject (one per skeleton), FILE.csv (clip path, class), "
+                   "or auto[:K]: K classes found from the poses without labels (K chosen by archive size if omitted).")
+@click.option("--segment", is_flag=True,
+              help="Cut long takes at PPCA change points and code each segment on its own (within --error); "
+                   "with -c auto the segments of one take can fall in different classes.")
 @click.option("--split", default=None, metavar="R,P,T",
               help="Force the error split between root motion, PCA and temporal coding (shares of --error).")
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
@@ -89,11 +93,14 @@ def _summary_line(s: dict) -> str:
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1, show_default="all cores",
               help="Worker processes for the error search.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
+@click.option("--skip-bad", is_flag=True,
+              help="Leave out clips that cannot be read (listed on stderr, in --json and in the archive) "
+                   "instead of stopping; fails only if no clip is left.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
-def compress(inputs, output, error_cm, lossless, representation, transform, wavelet, level, classes, split, asf,
-             fps, jobs, force, quiet, as_json):
+def compress(inputs, output, error_cm, lossless, representation, transform, wavelet, level, classes, segment, split,
+             asf, fps, jobs, force, skip_bad, quiet, as_json):
     """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
 
     Each AMC pairs with the one ASF in its folder (or --asf). Inputs are kept; OUTPUT is
@@ -104,6 +111,7 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
       mcz compress ../shared/data/cmu -o cmu.mcz                 every clip within 1 cm
       mcz compress ../shared/data/cmu -o cmu.mcz -e 0.5 -c single one basis for all clips
       mcz compress ../shared/data/cmu -o cmu.mcz --lossless      exact AMC values back
+      mcz compress ../shared/data/cmu -o cmu.mcz -c auto --segment  classes (and cuts) found from the poses
     """
     from .. import archive, progress
 
@@ -112,8 +120,9 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
     if transform == "dwt":
         transform_config.update(wavelet=wavelet, level=level)
     settings = archive.Settings(error_cm=error_cm, representation=representation, transform=transform_config,
-                                classes=classes, split=_parse_split(split), fps=fps, lossless=lossless)
-    summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs)
+                                classes=classes, split=_parse_split(split), fps=fps, lossless=lossless,
+                                segment=segment)
+    summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     elif not quiet:
@@ -170,12 +179,25 @@ def info(archive_path, as_json):
     s = report["settings"]
     mode = "lossless" if s["lossless"] else f"error <= {s['error_cm']} cm, {s['representation']}, {s['transform']['id']}"
     click.echo(f"{report['path']}: format {report['format_version']}, written by {report['tool']}")
-    click.echo(f"settings: {mode}, classes {s['classes']}, {s['fps']} fps")
+    click.echo(f"settings: {mode}, classes {s['classes']}{', segmented' if s.get('segment') else ''}, {s['fps']} fps")
     click.echo(f"{len(report['clips'])} clips, {report['frames']} frames, {report['bytes']:,} bytes "
                f"({report['bytes_per_frame']:.2f} bytes/frame), worst clip error {report['worst_error_cm']:.3f} cm")
     click.echo("streams: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(report["stream_bytes"].items())))
     for c in report["classes"]:
         click.echo(f"  class {c['name']}: {c['clips']} clips, {c['frames']} frames, {c['components']} components")
+    for group in report["auto_classes"]:
+        tried = {}
+        for candidate in group["candidates"]:
+            tried[candidate["k"]] = min(candidate["bytes"], tried.get(candidate["k"], candidate["bytes"]))
+        units = "clips and segments" if s.get("segment") else "clips"
+        click.echo(f"auto classes: K={group['k']} ({group['method']}) for {group['clips']} {units} of pose width "
+                   f"{group['width']}; estimated bytes by K: " + ", ".join(f"{k}: {b:,}" for k, b in sorted(tried.items())))
+    names = [c["name"] for c in report["classes"]]
+    for clip in report["clips"]:
+        if "segments" in clip:
+            click.echo(f"  {clip['path']}: {len(clip['segments'])} segments: " + ", ".join(
+                f"frames {seg['first']}..{seg['first'] + seg['frames'] - 1} {names[seg['class']]}"
+                for seg in clip["segments"]))
 
 
 @main.command("test")

@@ -62,9 +62,12 @@ def write_archive(
         if not overwrite and os.path.lexists(path):  # appeared while we were writing
             raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
         os.replace(tmp, path)
-    except BaseException:  # also KeyboardInterrupt/SystemExit: never leave a temporary file
+    except BaseException as exc:  # also KeyboardInterrupt/SystemExit: never leave a temporary file
         if os.path.lexists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and not isinstance(exc, FileExistsError) and exc.errno:
+            # HDF5 reports e.g. a full disk in several lines naming the temporary file: name the archive.
+            raise OSError(exc.errno, f"cannot write the archive: {os.strerror(exc.errno)}", path) from exc
         raise
     if os.name == "posix":  # make the rename itself durable
         fd = os.open(directory, os.O_RDONLY)

@@ -5,6 +5,7 @@ Streams (see docs/format.md, "Streams written by the codec"):
   skeletons   zstd JSON list of the ASF texts, byte for byte (they compress well together)
   class/NNNN  a class's quantised PCA mean and basis (lossy mode)
   clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
+  clip/NNNNN/SSS  segment SSS of a take cut by --segment (its row in meta lists the segments)
 """
 
 from __future__ import annotations
@@ -14,12 +15,13 @@ import json
 import os
 import time
 from collections import defaultdict
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path, PurePosixPath
 
 import numpy as np
 
 from . import __version__
+from .autoclass import auto_classes, parse_auto
 from .classes import assign_classes
 from .clip import LoadedClip, channels_from, load_clips, pose_weights, skeleton_params
 from .codec import get_stage
@@ -30,11 +32,14 @@ from .formats.asf import parse_asf
 from .formats.errors import MocapFormatError
 from .formats.mcz import ArchiveError, ArchiveReader, write_archive
 from .inputs import find_clips
-from .lossy import ClassBasis, CodedClip, encode_class, reconstruct
+from .lossy import ClassBasis, CodedClip, code_clip, encode_class, reconstruct
 from .skeleton import ChannelLayout, SkeletonModel
 from .progress import progress
+from .representations.base import Encoded
+from .segment import OVERLAP, coded_range, join_segments, segment_take
 
 DEFAULT_ERROR_CM = 1.0
+TIGHTENINGS = 8  # times a segmented take's segments are coded again, 10 % tighter, if the joined take misses
 
 
 @dataclass
@@ -51,25 +56,43 @@ class Settings:
     axis_weight_cm: float = 10.0  # weight of bone axis vectors against joint positions (clip.pose_weights)
     fps: float = 120.0
     lossless: bool = False
+    segment: bool = False  # cut long takes at PPCA change points, each segment coded on its own
 
 
-def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1) -> dict:
-    """Compress every clip under `inputs` into `output`; return the summary (also stored in meta)."""
+def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
+             skip_bad: bool = False) -> dict:
+    """Compress every clip under `inputs` into `output`; return the summary (also stored in meta).
+
+    With `skip_bad`, clips that cannot be read are left out and listed in the summary's
+    `skipped` (and the archive's meta) instead of stopping the run.
+    """
     if not force and os.path.lexists(output):
         raise FileExistsError(None, "already exists", os.fspath(output))
     started = time.perf_counter()
-    sources = find_clips(inputs, asf=asf)
-    if not sources:
+    skipped = [] if skip_bad else None  # {"path", "error"} per clip left out
+    sources = find_clips(inputs, asf=asf, skipped=skipped)
+    if not sources and not skipped:
         raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, inputs)))
-    skeleton_paths = sorted({s.asf for s in sources})
-    skeleton_texts = [p.read_bytes().decode("latin-1") for p in skeleton_paths]
     representation = None if settings.lossless else settings.representation
-    clips = load_clips(sources, skeleton_paths, representation, settings.axis_weight_cm)
-    class_of = assign_classes(sources, settings.classes)
-    class_names = sorted(set(class_of.values()))
+    clips = load_clips(sources, sorted({s.asf for s in sources}), representation, settings.axis_weight_cm, skipped)
+    if not clips:
+        raise MocapFormatError(f"nothing to compress: all {len(skipped)} clips were skipped",
+                               ", ".join(map(os.fspath, inputs)))
+    sources = [c.source for c in clips]
+    skeleton_paths = sorted({s.asf for s in sources})  # only the skeletons of the clips kept
+    for clip in clips:
+        clip.skeleton_index = skeleton_paths.index(clip.source.asf)
+    skeleton_texts = [p.read_bytes().decode("latin-1") for p in skeleton_paths]
+    units = _units(clips, settings.segment and not settings.lossless)
+    auto_report: dict = {}
+    unit_class = _unit_classes(sources, units, settings, jobs, auto_report)
+    class_names = sorted(set(unit_class))
+    parts_of = defaultdict(list)  # clip index -> its units' indices
+    for u, unit in enumerate(units):
+        parts_of[unit.clip].append(u)
 
     streams: dict[str, bytes] = {}
-    rows = [_clip_row(c, class_names.index(class_of[c.source.relpath])) for c in clips]
+    rows = [_clip_row(c, class_names.index(unit_class[parts_of[i][0]])) for i, c in enumerate(clips)]
     classes_meta = []
     if settings.lossless:
         for i, clip in enumerate(progress(clips, desc="lossless", unit="clip")):
@@ -77,23 +100,39 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
             rows[i].update(error_cm=0.0, max_error_cm=0.0)
     else:
         transform = get_stage(settings.transform)
+        coded_units: list = [None] * len(units)  # (class index, basis, CodedClip, (mean, max error))
         for k, name in enumerate(progress(class_names, desc="classes", unit="class")):
-            members = [i for i, c in enumerate(clips) if class_of[c.source.relpath] == name]
-            basis, coded, errors = encode_class([clips[i] for i in members], transform, settings, jobs)
+            members = [u for u, c in enumerate(unit_class) if c == name]
+            basis, coded, errors = encode_class([units[u].clip_data for u in members], transform, settings, jobs)
             streams[f"class/{k:04d}"] = basis.encode()
-            classes_meta.append({"name": name, "components": basis.q, "clips": len(members),
-                                 "frames": sum(clips[i].motion.n_frames for i in members)})
-            for i, code, (mean_err, max_err) in zip(members, coded, errors):
+            classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
+                                 "frames": sum(units[u].clip_data.motion.n_frames for u in members)})
+            for u, code, error in zip(members, coded, errors):
+                coded_units[u] = (k, basis, code, error)
+        for i, clip in enumerate(clips):
+            parts = parts_of[i]
+            if len(parts) == 1:
+                _, _, code, (mean_err, max_err) = coded_units[parts[0]]
                 streams[f"clip/{i:05d}"] = code.payload()
                 rows[i].update(error_cm=mean_err, max_error_cm=max_err)
+            else:
+                streams.update(_segmented_take(rows[i], i, clip, [units[u] for u in parts],
+                                               [coded_units[u] for u in parts], transform, settings))
 
+    stored_settings = asdict(settings)
+    if not settings.segment:
+        del stored_settings["segment"]  # absent means off: archives without segments are written as before
     meta = {
         "tool": f"mocapzip {__version__}",
-        "settings": asdict(settings),
+        "settings": stored_settings,
         "skeletons": [{"name": p.name} for p in skeleton_paths],
         "classes": classes_meta if not settings.lossless else [],
         "clips": rows,
     }
+    if auto_report:
+        meta["auto_classes"] = auto_report["groups"]
+    if skipped:
+        meta["skipped"] = skipped
     ordered = {"meta": encode_bytes(json.dumps(meta, sort_keys=True).encode()),
                "skeletons": encode_bytes(json.dumps(skeleton_texts).encode())}
     ordered.update(sorted(streams.items()))
@@ -108,7 +147,93 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "bytes_per_frame": size / frames,
         "worst_error_cm": max(r["error_cm"] for r in rows),
         "seconds": time.perf_counter() - started,
+        "skipped": skipped or [],
     }
+
+
+@dataclass
+class _Unit:
+    """What the codec codes on its own: a whole clip, or (--segment) one segment of a take."""
+
+    clip: int  # index of the take in the archive's clips
+    first: int  # the segment's first frame in the take (0 for a whole clip)
+    frames: int  # the segment's frame count, up to the next cut
+    clip_data: LoadedClip  # the frames coded: the segment and OVERLAP frames past its cuts (segment.coded_range)
+
+
+def _units(clips: list[LoadedClip], segment: bool) -> list[_Unit]:
+    """Every clip as one unit, or with `segment` cut at its PPCA change points (`segment.segment_take`)."""
+    units = []
+    for i, clip in enumerate(progress(clips, desc="segment", unit="clip") if segment else clips):
+        n = clip.motion.n_frames
+        cuts = segment_take(clip.poses) if segment else [0, n]
+        if len(cuts) == 2:
+            units.append(_Unit(i, 0, n, clip))
+        else:
+            units.extend(_Unit(i, a, b - a, _frames_of(clip, *coded_range(a, b - a, n)))
+                         for a, b in zip(cuts[:-1], cuts[1:]))
+    return units
+
+
+def _frames_of(clip: LoadedClip, a: int, b: int) -> LoadedClip:
+    """Frames a..b-1 of a clip as a clip of their own (representations map each frame on its own)."""
+    m, e = clip.motion, clip.encoded
+    motion = Motion(m.bones, m.counts, m.values[a:b], m.frame_numbers[a:b], m.header, m.path, m.style)
+    encoded = Encoded(e.poses[a:b], None if e.root is None else e.root[a:b], e.params)
+    return replace(clip, motion=motion, encoded=encoded, positions=clip.positions[a:b])
+
+
+def _unit_classes(sources, units: list[_Unit], settings: Settings, jobs: int, report: dict) -> list[str]:
+    """The class name of each unit: by path or table (`classes.assign_classes`; a take's segments
+    share its class), or `auto[:K]` from the poses (`autoclass.auto_classes`, its plan in `report`)."""
+    k = parse_auto(settings.classes)
+    if k is False:
+        class_of = assign_classes(sources, settings.classes)
+        return [class_of[unit.clip_data.source.relpath] for unit in units]
+    if settings.lossless:
+        return ["all"] * len(units)  # lossless clips share no basis: there is nothing to group
+    return auto_classes([unit.clip_data for unit in units], k, settings, jobs=jobs, report=report)
+
+
+def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit], coded: list, transform,
+                    settings: Settings) -> dict[str, bytes]:
+    """Streams of a take cut into segments; fills its row's `segments`, `segment_overlap`, `class`
+    (the first segment's) and its achieved error, measured on the take joined as `Archive.decode` does.
+
+    Every segment met the target on its coded frames, and the crossfade only mixes frames both
+    decode well, so the take nearly always meets it at once; if not, its segments are coded
+    again against a tighter target until it does.
+    """
+    target, dz = settings.error_cm, settings.dead_zone
+    cores = [(unit.first, unit.frames) for unit in units]
+    codes, errors = [c[2] for c in coded], [c[3] for c in coded]
+    for _ in range(TIGHTENINGS):
+        decoded = [reconstruct(code, c[1], transform, dz, unit.clip_data.motion.n_frames)
+                   for code, c, unit in zip(codes, coded, units)]
+        mean_err, max_err = clip.error(*_joined(decoded, cores, clip.motion.n_frames, OVERLAP), final=True)
+        if mean_err <= target:
+            break
+        target *= 0.9
+        codes, errors = zip(*(code_clip(unit.clip_data, c[1], transform, target, dz, settings.split)
+                              for unit, c in zip(units, coded)))
+    else:
+        raise RuntimeError(f"{row['path']}: segments joined to {mean_err:.4f} cm, above {settings.error_cm} cm")
+    streams, segments = {}, []
+    for s, (unit, c, code, (seg_mean, seg_max)) in enumerate(zip(units, coded, codes, errors)):
+        name = f"clip/{index:05d}/{s:03d}"
+        streams[name] = code.payload()
+        segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
+                         "error_cm": seg_mean, "max_error_cm": seg_max})
+    row.update(segments=segments, segment_overlap=OVERLAP, error_cm=mean_err, max_error_cm=max_err)
+    row["class"] = segments[0]["class"]
+    return streams
+
+
+def _joined(decoded: list, cores: list[tuple[int, int]], n_frames: int, overlap: int):
+    """(poses, root) of a take from its segments' decoded (poses, root) (`segment.join_segments`)."""
+    poses = join_segments([p for p, _ in decoded], cores, n_frames, overlap)
+    root = None if decoded[0][1] is None else join_segments([r for _, r in decoded], cores, n_frames, overlap)
+    return poses, root
 
 
 def _clip_row(clip: LoadedClip, class_index: int) -> dict:
@@ -172,15 +297,22 @@ class Archive:
         row = self.clips[index]
         name = f"clip/{index:05d}"
         try:
-            blob = self._reader.read(name)
             if self.settings.lossless:
-                values = decode_channels(blob)
+                values = decode_channels(self._reader.read(name))
             else:
                 model = self._model(row["skeleton"])
                 layout = model.layout(ChannelLayout(tuple(row["bones"]), tuple(row["counts"]), row["angle_unit"]))
                 name_ = self.settings.representation
-                poses, root = reconstruct(CodedClip.from_payload(blob), self._basis(row["class"]), self._transform,
-                                          self.settings.dead_zone, row["frames"])
+                if "segments" in row:  # --segment: the segments joined, then turned into channels in one go
+                    decoded, cores = [], []
+                    for part in row["segments"]:
+                        name = part["stream"]
+                        lo, hi = coded_range(part["first"], part["frames"], row["frames"], row["segment_overlap"])
+                        decoded.append(self._reconstruct(name, part["class"], hi - lo))
+                        cores.append((part["first"], part["frames"]))
+                    poses, root = _joined(decoded, cores, row["frames"], row["segment_overlap"])
+                else:
+                    poses, root = self._reconstruct(name, row["class"], row["frames"])
                 poses = poses / pose_weights(model, name_, poses.shape[1], self.settings.axis_weight_cm)
                 values = channels_from(model, name_, layout, poses, root, skeleton_params(model, name_, layout))
         except (ValueError, KeyError, IndexError, EOFError) as exc:
@@ -189,6 +321,11 @@ class Archive:
             raise ArchiveError(f"{name} ({row['path']}): decoded shape {values.shape} does not match", self.path)
         frames = np.arange(row["first_frame"], row["first_frame"] + row["frames"])
         return Motion(row["bones"], row["counts"], values, frames, row["header"], row["path"], AmcStyle(**row["style"]))
+
+    def _reconstruct(self, stream: str, class_index: int, n_frames: int):
+        """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
+        coded = CodedClip.from_payload(self._reader.read(stream))
+        return reconstruct(coded, self._basis(class_index), self._transform, self.settings.dead_zone, n_frames)
 
     def _model(self, k: int) -> SkeletonModel:
         if k not in self._models:
@@ -211,9 +348,21 @@ class Archive:
     def format_version(self) -> int:
         return self._reader.format_version
 
+    def verify_checksums(self) -> None:
+        """Check every stream's CRC32 without decoding: cheap, so `info` and `decompress` run it first."""
+        paths = {f"clip/{i:05d}": row["path"] for i, row in enumerate(self.clips)}
+        for name in self._reader.names():
+            try:
+                self._reader.read(name)
+            except ArchiveError as exc:
+                clip = paths.get(name[:10])  # clip/NNNNN and its segments clip/NNNNN/SSS
+                if clip is None:
+                    raise
+                raise ArchiveError(f"{exc.message} (clip {clip})", self.path) from exc
+
     def verify(self) -> None:
         """Check every stream's checksum and decode every clip (`mcz test`)."""
-        self._reader.verify()
+        self.verify_checksums()
         for i in progress(range(len(self.clips)), desc="test", unit="clip"):
             self.decode(i)
 
@@ -222,6 +371,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False) -> dict:
     """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`."""
     out = Path(out_dir)
     with Archive(archive_path) as archive:
+        archive.verify_checksums()  # a damaged archive is refused before any file is written
         chosen = [i for i, row in enumerate(archive.clips)
                   if not patterns or any(fnmatch.fnmatch(row["path"], p) for p in patterns)]
         if not chosen:
@@ -253,8 +403,10 @@ def _write_atomically(path: Path, data: bytes) -> None:
     try:
         tmp.write_bytes(data)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.errno and exc.filename is None:  # e.g. a full disk: name the file
+            raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
         raise
 
 
@@ -262,6 +414,7 @@ def info(archive_path) -> dict:
     """What `mcz info` shows: settings, classes, per-clip frames and achieved errors, sizes."""
     size = os.path.getsize(archive_path)
     with Archive(archive_path) as archive:
+        archive.verify_checksums()  # info on a damaged archive says so (decoding is left to `mcz test`)
         meta, format_version = archive.meta, archive.format_version
         stream_sizes = defaultdict(int)
         for name, length in archive.stream_sizes().items():
@@ -274,10 +427,21 @@ def info(archive_path) -> dict:
         "settings": meta["settings"],
         "skeletons": len(meta["skeletons"]),
         "classes": meta["classes"],
-        "clips": [{k: r[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")} for r in meta["clips"]],
+        "auto_classes": meta.get("auto_classes", []),
+        "clips": [_info_row(r) for r in meta["clips"]],
         "frames": frames,
         "bytes": size,
         "bytes_per_frame": size / frames if frames else 0.0,
         "stream_bytes": dict(stream_sizes),
         "worst_error_cm": max((r["error_cm"] for r in meta["clips"]), default=0.0),
+        "skipped": meta.get("skipped", []),  # clips left out by compress --skip-bad
     }
+
+
+def _info_row(row: dict) -> dict:
+    """A clip as `info` lists it; a segmented take (--segment) with its segments' frames, classes and errors."""
+    out = {k: row[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")}
+    if "segments" in row:
+        out["segments"] = [{k: s[k] for k in ("first", "frames", "class", "error_cm", "max_error_cm")}
+                           for s in row["segments"]]
+    return out

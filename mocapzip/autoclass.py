@@ -1,6 +1,7 @@
 """Automatic classes: `mcz compress --classes auto[:K]` groups clips into K PCA subspaces without labels.
 
-Entry point: `auto_classes(clips, k, settings) -> {clip path: "auto0" | "auto1" | ...}`.
+Entry point: `auto_classes(units, k, settings) -> ["auto0" | "auto1" | ..., one per unit]`, a unit
+being a whole clip or (`--segment`) one segment of a take.
 
 Two ways of finding K classes, both from per-clip statistics (count, mean, scatter of the
 codec's poses), so no frame is touched while iterating:
@@ -599,10 +600,11 @@ def _canonical(labels) -> np.ndarray:
 
 
 def auto_classes(clips, k: int | None, settings, *, max_k: int | None = None, seed: int = 0,
-                 restarts: int = 3, jobs: int = 1, report: dict | None = None) -> dict[str, str]:
-    """Map each clip's stored path to an automatic class name ("auto0", "auto1", ...).
+                 restarts: int = 3, jobs: int = 1, report: dict | None = None) -> list[str]:
+    """The automatic class name ("auto0", "auto1", ...) of each clip, in the order of `clips`.
 
-    `clips` are LoadedClips in the archive's representation (lossy mode). Clips whose
+    `clips` are LoadedClips in the archive's representation (lossy mode), whole takes or
+    segments of takes (so names go by position, not by stored path). Clips whose
     poses have different widths (different skeleton layouts) cannot share a basis: each
     width is partitioned on its own (K applies to each) and numbering continues across
     them. `report`, if given, receives the plan of each width group (JSON-able).
@@ -610,14 +612,14 @@ def auto_classes(clips, k: int | None, settings, *, max_k: int | None = None, se
     by_width: dict[int, list[int]] = {}
     for i, clip in enumerate(clips):
         by_width.setdefault(clip.poses.shape[1], []).append(i)
-    names: dict[str, str] = {}
+    names = [""] * len(clips)
     offset = 0
     plans = []
     for width, indices in sorted(by_width.items(), key=lambda kv: kv[1][0]):
         group = [clips[i] for i in indices]
         result = plan(group, k, settings, max_k=max_k, seed=seed, restarts=restarts, jobs=jobs)
         for i, label in zip(indices, result.labels):
-            names[clips[i].source.relpath] = f"auto{offset + int(label)}"
+            names[i] = f"auto{offset + int(label)}"
         plans.append({"width": width, "clips": len(indices), "k": result.k, "method": result.method,
                       "estimated_bytes": result.estimated_bytes, "candidates": result.candidates})
         offset += result.k

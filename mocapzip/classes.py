@@ -1,7 +1,8 @@
 """Which clips share a PCA basis: `--classes single|subject|FILE.csv`.
 
-A class is just a name per clip. Automatic classes (PPCA, annealing) plug in here
-later as one more way of producing that mapping.
+A class is just a name per clip. Automatic classes (`--classes auto[:K]`, PPCA and
+annealing) need the loaded poses: they live in `mocapzip.autoclass`, dispatched by
+`archive.compress`.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ def assign_classes(clips: list[ClipSource], mode: str) -> dict[str, str]:
     path = Path(mode)
     if path.suffix.lower() in (".csv", ".tsv") or path.is_file():
         return _classes_from_table(clips, path)
-    raise MocapFormatError(f"unknown --classes value {mode!r}: use single, subject or a CSV file")
+    raise MocapFormatError(f"unknown --classes value {mode!r}: use single, subject, auto[:K] or a CSV file")
 
 
 def _subject_name(clip: ClipSource) -> str:

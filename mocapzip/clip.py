@@ -15,7 +15,8 @@ import numpy as np
 
 from .formats.amc import AmcStyle, Motion, read_amc
 from .formats.asf import read_asf
-from .inputs import ClipSource
+from .formats.errors import MocapFormatError
+from .inputs import ClipSource, record_skip
 from .kinematics import forward
 from .metrics import joint_distances
 from .progress import progress
@@ -107,16 +108,26 @@ def skeleton_params(model: SkeletonModel, representation_name: str, layout: Chan
 
 
 def load_clips(sources: list[ClipSource], skeleton_paths: list, representation_name: str | None,
-               axis_weight_cm: float = 1.0) -> list[LoadedClip]:
-    """Read every clip (checking it against its skeleton) and convert it to the representation."""
+               axis_weight_cm: float = 1.0, skipped: list | None = None) -> list[LoadedClip]:
+    """Read every clip (checking it against its skeleton) and convert it to the representation.
+
+    A clip that cannot be read raises MocapFormatError or OSError; with a `skipped` list it
+    is left out and recorded there instead (`inputs.record_skip`).
+    """
     skeletons: dict = {}
     clips = []
     for source in progress(sources, desc="read", unit="clip"):
-        if source.asf not in skeletons:
-            skeleton = read_asf(source.asf)
-            skeletons[source.asf] = (skeleton, SkeletonModel.from_asf(skeleton))
-        skeleton, model = skeletons[source.asf]
-        motion = read_amc(source.amc, skeleton)  # checks every bone line against the skeleton
+        try:
+            if source.asf not in skeletons:
+                skeleton = read_asf(source.asf)
+                skeletons[source.asf] = (skeleton, SkeletonModel.from_asf(skeleton))
+            skeleton, model = skeletons[source.asf]
+            motion = read_amc(source.amc, skeleton)  # checks every bone line against the skeleton
+        except (MocapFormatError, OSError) as exc:
+            if skipped is None:
+                raise
+            record_skip(skipped, source, exc)
+            continue
         encoded = positions = None
         if representation_name is not None:
             encoded = get_representation(representation_name).forward(model, motion)

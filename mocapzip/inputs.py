@@ -8,6 +8,7 @@ agree on what a clip is.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,11 +33,13 @@ def _is_asf(name: str) -> bool:
 
 
 def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = None,
-               require_skeleton: bool = True) -> list[ClipSource]:
+               require_skeleton: bool = True, skipped: list | None = None) -> list[ClipSource]:
     """All AMC files under `inputs` (directories are walked recursively), sorted by stored path.
 
-    Raises MocapFormatError for a missing input, a folder whose skeleton is
-    ambiguous, or (with `require_skeleton`) an AMC with no skeleton.
+    Raises MocapFormatError for a missing input, or (with `require_skeleton`) an AMC with no
+    skeleton or an ambiguous one; without `require_skeleton` that AMC gets a warning and no
+    skeleton. With a `skipped` list, such an AMC is left out and recorded there instead
+    (see `record_skip`).
     """
     forced = Path(asf) if asf is not None else None
     if forced is not None and not forced.is_file():
@@ -57,6 +60,8 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
                     continue  # a skeleton named on the command line pairs by folder below
                 raise MocapFormatError("not an AMC file (expected the .amc extension)", path)
             clips.append(ClipSource(path, None, path.name))
+        elif path.is_symlink():
+            raise MocapFormatError("symbolic link loop or dangling symbolic link", path)
         else:
             raise MocapFormatError("no such file or directory", path)
     seen: dict[str, Path] = {}
@@ -64,17 +69,35 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
         if clip.relpath in seen:
             raise MocapFormatError(f"two inputs would be stored as '{clip.relpath}' (also {seen[clip.relpath]})", clip.amc)
         seen[clip.relpath] = clip.amc
-    paired = [ClipSource(c.amc, forced or _skeleton_in_folder(c.amc, require_skeleton), c.relpath) for c in clips]
+    paired = []
+    for c in clips:
+        try:
+            paired.append(ClipSource(c.amc, forced or _skeleton_in_folder(c.amc, require_skeleton), c.relpath))
+        except MocapFormatError as exc:
+            if skipped is None:
+                raise
+            record_skip(skipped, c, exc)
     return sorted(paired, key=lambda c: c.relpath)
+
+
+def record_skip(skipped: list, clip: ClipSource, exc: Exception) -> None:
+    """Add {"path": stored path, "error": one line} to `skipped` and say so in a warning."""
+    error = f"{exc.filename}: {exc.strerror}" if isinstance(exc, OSError) and exc.filename else str(exc)
+    skipped.append({"path": clip.relpath, "error": error})
+    warnings.warn(f"skipped {clip.relpath}: {error}", stacklevel=3)
 
 
 def _skeleton_in_folder(amc: Path, required: bool) -> Path | None:
     candidates = sorted(p for p in amc.parent.iterdir() if p.is_file() and _is_asf(p.name))
     if len(candidates) == 1:
         return candidates[0]
-    if not required:
-        return None
     if not candidates:
-        raise MocapFormatError("no skeleton: no .asf file in its folder (pass --asf FILE)", amc)
-    names = ", ".join(p.name for p in candidates)
-    raise MocapFormatError(f"ambiguous skeleton: {len(candidates)} .asf files in its folder ({names}); pass --asf FILE", amc)
+        error = MocapFormatError("no skeleton: no .asf file in its folder (pass --asf FILE)", amc)
+    else:
+        names = ", ".join(p.name for p in candidates)
+        error = MocapFormatError(f"ambiguous skeleton: {len(candidates)} .asf files in its folder ({names}); "
+                                 "pass --asf FILE", amc)
+    if required:
+        raise error
+    warnings.warn(str(error), stacklevel=4)
+    return None

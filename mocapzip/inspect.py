@@ -6,6 +6,7 @@ import os
 
 from .formats.amc import read_amc
 from .formats.asf import read_asf
+from .formats.errors import MocapFormatError
 from .inputs import find_clips
 from .progress import progress
 
@@ -13,6 +14,8 @@ from .progress import progress
 def inspect_paths(paths, asf=None, fps: float = 120.0) -> dict:
     """A JSON-ready report: one row per clip and the totals. Raises MocapFormatError on bad input."""
     clips = find_clips(paths, asf=asf, require_skeleton=False)
+    if not clips:
+        raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, paths)))
     skeletons = {}
     rows = []
     for clip in progress(clips, desc="inspect", unit="clip"):

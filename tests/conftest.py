@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+# One BLAS thread per process, set before numpy loads: the codec runs worker processes, and
+# on a 2-core machine threaded BLAS inside each made eigendecompositions about 8x slower.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 import pytest
 

@@ -1,5 +1,6 @@
-"""Automatic classes (`--classes auto[:K]`): k-subspaces with PPCA, deterministic annealing,
-the byte estimate, and compress/decompress round trips on short real clips."""
+"""Automatic classes (`--classes auto[:K]`) and segments (`--segment`): k-subspaces with PPCA,
+deterministic annealing, the byte estimate, PPCA segmentation, and compress/decompress round
+trips on short real clips (API and CLI)."""
 
 from __future__ import annotations
 
@@ -8,8 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from mocapzip.autoclass import (ByteProxy, ClipStats, _weighted_truncation, anneal, auto_classes, kss_ppca,
-                                parse_auto, plan)
+from mocapzip.autoclass import ByteProxy, ClipStats, _weighted_truncation, anneal, kss_ppca, parse_auto, plan
 from mocapzip.codec.pca import PcaBasis
 from mocapzip.formats.errors import MocapFormatError
 
@@ -105,48 +105,99 @@ def test_auto_classes_on_real_walks_and_runs(short_clips):
     assert details[6]["components"] > max(v["components"] for k, v in proxy.details.items() if len(k) == 3)
 
 
-def test_round_trip_with_auto_classes(short_clips, tmp_path):
-    """compress --classes auto:2 (or, before archive.compress knows `auto`, the same classes
-    through a class table), decompress, and check every clip's error from the written AMC."""
-    from mocapzip import archive
+def decoded_errors(original_path, decoded_path):
+    """Per-frame mean joint error (cm) of a decompressed AMC against its original, read back from disk
+    (independent of the codec), and the two files' frame numbers."""
     from mocapzip.formats.amc import read_amc
     from mocapzip.formats.asf import read_asf
     from mocapzip.kinematics import forward
-    from mocapzip.metrics import mean_joint_error
+    from mocapzip.metrics import frame_errors
     from mocapzip.skeleton import SkeletonModel
 
-    clips, settings, _, paths = short_clips
+    skeleton = read_asf(original_path.parent / f"{original_path.parent.name}.asf")
+    model = SkeletonModel.from_asf(skeleton)
+    original, decoded = read_amc(original_path, skeleton), read_amc(decoded_path, skeleton)
+    assert decoded.header == original.header and decoded.bones == original.bones
+    errors = frame_errors(forward(model, original.values, original).positions,
+                          forward(model, decoded.values, decoded).positions)
+    return errors, original.frame_numbers, decoded.frame_numbers
+
+
+def test_round_trip_with_auto_classes(short_clips, tmp_path):
+    """compress --classes auto:2 natively, decompress, and check every clip's error from the written AMC."""
+    from mocapzip import archive
+
+    _, _, _, paths = short_clips
     chosen = [paths[0], paths[1], paths[3], paths[4]]
     out = tmp_path / "auto.mcz"
-    settings = archive.Settings(classes="auto:2")
-    try:
-        summary = archive.compress(chosen, out, settings, jobs=2)
-        native = True
-    except MocapFormatError as exc:
-        assert "unknown --classes" in str(exc)
-        names = auto_classes([c for c in clips if c.source.amc in chosen], 2, settings, jobs=2)
-        table = tmp_path / "classes.csv"
-        table.write_text("".join(f"{p},{n}\n" for p, n in names.items()))
-        settings.classes = str(table)
-        summary = archive.compress(chosen, out, settings, jobs=2)
-        native = False
+    summary = archive.compress(chosen, out, archive.Settings(classes="auto:2"), jobs=1)
     assert summary["worst_error_cm"] <= 1.0
     info = archive.info(out)
     assert sorted(c["name"] for c in info["classes"]) == ["auto0", "auto1"]
     by_class = {c["name"]: {r["path"][:2] for r in info["clips"] if r["class"] == i} for i, c in enumerate(info["classes"])}
     assert sorted(map(sorted, by_class.values())) == [["07"], ["09"]]
-    if native:
-        assert info["auto_classes"][0]["k"] == 2
+    assert info["auto_classes"][0]["k"] == 2 and info["auto_classes"][0]["clips"] == 4
     archive.decompress(out, tmp_path / "out")
     for path in chosen:
-        skeleton = read_asf(path.parent / f"{path.parent.name}.asf")
-        model = SkeletonModel.from_asf(skeleton)
-        original = read_amc(path, skeleton)
-        decoded = read_amc(tmp_path / "out" / path.name, skeleton)
-        error = mean_joint_error(forward(model, original.values, original).positions,
-                                 forward(model, decoded.values, decoded).positions)
-        assert error <= 1.0 + 1e-6, (path.name, error)
+        errors, _, _ = decoded_errors(path, tmp_path / "out" / path.name)
+        assert errors.mean() <= 1.0 + 1e-6, (path.name, errors.mean())
     json.dumps(info)  # meta stays JSON
+
+
+def test_segmented_take_decodes_whole_within_target(shared_data, tmp_path):
+    """--segment on a real boxing take that PPCA cuts in four: one AMC back with the original's
+    frames, the whole take within the target, no jump at the cuts, and (auto:2) several classes."""
+    from mocapzip import archive
+
+    take = shared_data / "cmu" / "02" / "02_05.amc"
+    out = tmp_path / "seg.mcz"
+    archive.compress([take], out, archive.Settings(classes="auto:2", segment=True), jobs=1)
+    with archive.Archive(out) as opened:
+        opened.verify()
+        row = opened.clips[0]
+    segments = row["segments"]
+    assert len(segments) >= 2 and segments[0]["first"] == 0
+    assert all(a["first"] + a["frames"] == b["first"] for a, b in zip(segments, segments[1:]))
+    assert segments[-1]["first"] + segments[-1]["frames"] == row["frames"]
+    assert len({s["class"] for s in segments}) == 2  # one take, two class bases
+    archive.decompress(out, tmp_path / "out")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["02.asf", "02_05.amc"]
+    errors, original_frames, decoded_frames = decoded_errors(take, tmp_path / "out" / "02_05.amc")
+    assert np.array_equal(decoded_frames, original_frames)
+    assert errors.mean() <= 1.0 and abs(errors.mean() - row["error_cm"]) < 1e-3  # the stored error is the real one
+    for cut in (s["first"] for s in segments[1:]):
+        assert errors[cut - 5 : cut + 5].mean() <= 2.0, (cut, errors[cut - 5 : cut + 5])
+
+
+def test_cli_auto_classes_and_segments(shared_data, tmp_path):
+    """`mcz compress -c auto --segment` (K chosen by size) and `mcz info` listing what was chosen."""
+    from click.testing import CliRunner
+
+    from mocapzip.cli.main import main
+
+    def run(*args):
+        return CliRunner().invoke(main, [str(a) for a in args])
+
+    cmu = shared_data / "cmu"
+    takes = [cmu / "07" / "07_01.amc", cmu / "09" / "09_01.amc", cmu / "02" / "02_05.amc"]
+    out = tmp_path / "db.mcz"
+    result = run("compress", *takes, "-o", out, "-c", "auto", "--segment", "-q", "-j", "1")
+    assert result.exit_code == 0, result.output
+    report = json.loads(run("info", out, "--json").output)
+    chosen = report["auto_classes"][0]
+    assert chosen["k"] == len(report["classes"]) >= 1
+    assert chosen["estimated_bytes"] == min(c["bytes"] for c in chosen["candidates"])
+    segmented = [c for c in report["clips"] if "segments" in c]
+    assert [c["path"] for c in segmented] == ["02_05.amc"]
+    assert chosen["clips"] == 2 + len(segmented[0]["segments"])  # the planner saw segments, not the take
+    text = run("info", out).output
+    assert f"auto classes: K={chosen['k']}" in text and "02_05.amc: " in text
+    assert run("decompress", out, "-o", tmp_path / "out", "-q").exit_code == 0
+    stored = {c["path"]: c["error_cm"] for c in report["clips"]}
+    for take in takes:
+        errors, original_frames, decoded_frames = decoded_errors(take, tmp_path / "out" / take.name)
+        assert np.array_equal(decoded_frames, original_frames)
+        assert errors.mean() <= 1.0 and abs(errors.mean() - stored[take.name]) < 1e-3, take.name
 
 
 def test_ppca_segmentation_cuts_where_the_behaviour_changes(shared_data):

@@ -1,0 +1,248 @@
+"""Hostile inputs through the `mcz` command line (issue 5, item 1) and `compress --skip-bad`.
+
+The corpus (tests/hostile_inputs.py) is real CMU data damaged one way per folder. Every
+refusal must be ONE line naming the file (and line) and the problem, exit 1, no traceback,
+and no output or temporary file left behind.
+"""
+
+from __future__ import annotations
+
+import builtins
+import errno
+import json
+import os
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+import hostile_inputs
+from mocapzip.archive import Archive
+from mocapzip.cli.main import main
+from mocapzip.formats import amc as amc_module
+from mocapzip.formats import asf as asf_module
+from mocapzip.formats import mcz as mcz_module
+
+GOLDEN_LOSSLESS = Path(__file__).parent / "golden" / "lossless_v1.mcz"
+
+
+def run(*args):
+    return CliRunner().invoke(main, [os.fspath(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def corpus(tmp_path_factory, shared_data):
+    root = tmp_path_factory.mktemp("hostile")
+    return root, {case.name: case for case in hostile_inputs.build(root, shared_data)}
+
+
+@pytest.fixture
+def deny_unreadable(corpus, monkeypatch):
+    """Make chmod 000 deny reading even as root, exactly where the readers open files.
+
+    Root reads any file, so there the kernel cannot refuse; this applies the permission
+    bits the way the kernel does for everyone else. As a normal user nothing is patched.
+    """
+    root, _ = corpus
+    if not hostile_inputs.is_readable_anyway(root / "unreadable_file" / hostile_inputs.AMC_NAME):
+        return
+    real_open = builtins.open
+
+    def guarded_open(file, mode="r", *args, **kwargs):
+        if "r" in mode and not os.stat(file).st_mode & 0o444:
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(file))
+        return real_open(file, mode, *args, **kwargs)
+
+    for module in (amc_module, asf_module):
+        monkeypatch.setattr(module, "open", guarded_open, raising=False)
+
+
+def error_line(result) -> str:
+    """The single stderr line of a refused command (no traceback, nothing on stdout)."""
+    assert result.exit_code == 1, (result.exit_code, result.output)
+    assert isinstance(result.exception, SystemExit), result.exception
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mcz: error: "), result.stderr
+    assert result.stdout == ""
+    return lines[0]
+
+
+def names(case) -> str:
+    """The regex a message must match: file, line where there is one, then the problem."""
+    where = re.escape(case.file) + (f":{case.line}" if case.line is not None else "")
+    return where + r": .*" + re.escape(case.problem)
+
+
+def refusal_problems(case, folder: Path, out: Path) -> list[str]:
+    """What is wrong with how `compress` and `inspect` refuse this case (empty: all good)."""
+    inputs = [os.path.normpath(folder / i) for i in case.inputs]
+    try:
+        line = error_line(run("compress", *inputs, "-o", out / "db.mcz", "--lossless", "-q"))
+    except AssertionError as exc:
+        return [f"compress: {exc}"]
+    problems = [] if re.search(names(case), line) else [f"compress says {line!r}, expected {names(case)!r}"]
+    if os.listdir(out):
+        problems.append(f"compress left {os.listdir(out)}")
+    inspected = run("inspect", *inputs)
+    if case.inspect_warns:  # inspect lists clips without a skeleton; it still names the problem
+        if inspected.exit_code != 0 or f"mcz: warning: {line.removeprefix('mcz: error: ')}" not in inspected.stderr:
+            problems.append(f"inspect: exit {inspected.exit_code}, {inspected.output!r}")
+    else:
+        try:
+            if error_line(inspected) != line:
+                problems.append(f"inspect says {inspected.stderr!r}, compress {line!r}")
+        except AssertionError as exc:
+            problems.append(f"inspect: {exc}")
+    return problems
+
+
+def test_bad_inputs_are_refused_in_one_line_and_leave_nothing(corpus, deny_unreadable, tmp_path):
+    root, cases = corpus
+    refused = [case for case in cases.values() if case.expect == "error"]
+    failures = {}
+    for case in refused:
+        out = tmp_path / case.name
+        out.mkdir()
+        problems = refusal_problems(case, root / case.name, out)
+        if problems:
+            failures[case.name] = problems
+    print(f"{len(refused) - len(failures)} of {len(refused)} bad inputs refused cleanly")
+    assert failures == {}
+
+
+@pytest.mark.parametrize("name", ["truncated_mid_frame", "truncated_mid_number"])
+def test_truncated_last_frame_is_dropped_with_a_warning(corpus, tmp_path, name):
+    """A copy cut inside its last frame keeps every complete frame; the cut frame is named."""
+    root, cases = corpus
+    case = cases[name]
+    assert case.expect == "warning"
+    result = run("compress", root / name, "-o", tmp_path / "db.mcz", "--lossless", "--json")
+    assert result.exit_code == 0, result.output
+    (warning,) = result.stderr.splitlines()
+    assert warning.startswith("mcz: warning: ") and re.search(names(case), warning), warning
+    assert json.loads(result.stdout)["frames"] == case.frames
+    inspected = run("inspect", "--json", root / name)
+    assert inspected.exit_code == 0 and inspected.stderr.splitlines() == [warning]
+    assert json.loads(inspected.stdout)["total"]["frames"] == case.frames
+
+
+def test_unreadable_file_is_really_unreadable(corpus, deny_unreadable):
+    """The permission case tests a denial, real or (as root) applied by `deny_unreadable`."""
+    root, _ = corpus
+    with pytest.raises(PermissionError):
+        amc_module.read_amc(root / "unreadable_file" / hostile_inputs.AMC_NAME)
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory, corpus, shared_data):
+    """The whole corpus plus a folder of good clips: what --skip-bad must sort out."""
+    root, cases = corpus
+    good = tmp_path_factory.mktemp("good")
+    subject = shared_data / hostile_inputs.SUBJECT
+    for name in ("09.asf", "09_02.amc", "09_03.amc"):
+        shutil.copy(subject / name, good / name)
+    return root, cases, good
+
+
+def test_skip_bad_compresses_the_rest_and_lists_what_was_skipped(mixed, deny_unreadable, tmp_path):
+    root, cases, good = mixed
+    archive = tmp_path / "db.mcz"
+    result = run("compress", root, good, "-o", archive, "--lossless", "--skip-bad", "--json")
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+
+    skipped = {entry["path"]: entry["error"] for entry in summary["skipped"]}
+    bad_clips = {}
+    for name, case in cases.items():
+        if case.expect == "error":
+            for path in (root / name).iterdir():
+                if path.name.lower().endswith(".amc"):
+                    bad_clips[f"{name}/{path.name}"] = case
+    assert set(skipped) == set(bad_clips)
+    for path, case in bad_clips.items():
+        # inside a folder, a looping link is found by the walk and fails when opened
+        problem = "Too many levels of symbolic links" if "symlink" in path else case.problem
+        assert problem in skipped[path] and case.file in skipped[path], (path, skipped[path])
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("mcz: warning: skipped ")]
+    assert warnings == [f"mcz: warning: skipped {path}: {error}" for path, error in skipped.items()]
+
+    kept = {"09_02.amc", "09_03.amc"} | {f"{name}/{case.file}" for name, case in cases.items() if case.expect == "warning"}
+    assert summary["clips"] == len(kept) == 4  # the good clips and the copies cut in their last frame
+    with Archive(archive) as opened:
+        assert opened.meta["skipped"] == summary["skipped"]
+        assert {row["path"] for row in opened.clips} == kept
+    assert json.loads(run("info", "--json", archive).stdout)["skipped"] == summary["skipped"]
+    out = tmp_path / "out"
+    assert run("decompress", archive, "-o", out, "--clip", "09_0?.amc", "-q").exit_code == 0
+    for name in ("09_02.amc", "09_03.amc"):  # lossless: the good clips come back byte for byte
+        assert (out / name).read_bytes() == (good / name).read_bytes()
+
+
+def test_skip_bad_with_nothing_left_is_an_error(mixed, tmp_path):
+    root, cases, _ = mixed
+    folder, out = tmp_path / "bad", tmp_path / "out"
+    folder.mkdir()
+    out.mkdir()
+    shutil.copy(root / "value_nan" / hostile_inputs.ASF_NAME, folder)
+    bad = [name for name in cases if name.startswith("value_")]
+    for name in bad:
+        shutil.copy(root / name / hostile_inputs.AMC_NAME, folder / f"{name}.amc")
+    result = run("compress", folder, "-o", out / "db.mcz", "--lossless", "--skip-bad")
+    assert result.exit_code == 1
+    lines = result.stderr.splitlines()
+    assert len(lines) == len(bad) + 1 and all(line.startswith("mcz: warning: skipped ") for line in lines[:-1])
+    assert re.fullmatch(rf"mcz: error: .*: nothing to compress: all {len(bad)} clips were skipped", lines[-1])
+    assert os.listdir(out) == []
+
+
+def test_without_skip_bad_the_first_bad_clip_stops_the_run(mixed, tmp_path):
+    root, cases, good = mixed
+    out = tmp_path / "out"
+    out.mkdir()
+    line = error_line(run("compress", root / "value_nan", good, "-o", out / "db.mcz", "--lossless"))
+    assert re.search(names(cases["value_nan"]), line)
+    assert os.listdir(out) == []
+
+
+def test_full_disk_during_compress_leaves_nothing(shared_data, tmp_path, monkeypatch):
+    """HDF5 reports ENOSPC in several lines naming the temporary file; the user sees one line naming OUTPUT."""
+    out = tmp_path / "out"
+    out.mkdir()
+    seen = []
+
+    def full_disk(dataset, values):
+        seen.extend(n for n in os.listdir(out) if n.startswith(".db.mcz.tmp-"))
+        raise OSError(errno.ENOSPC, "Can't synchronously write data (file write failed: time = ...\n, "
+                                    "filename = '.db.mcz.tmp-0', errno = 28, error message = 'No space left on device')")
+
+    monkeypatch.setattr(mcz_module, "_write_payload", full_disk)
+    result = run("compress", shared_data / "cmu" / "09" / "09_01.amc", "-o", out / "db.mcz", "--lossless", "-q")
+    assert seen, "the temporary archive existed when the disk filled"
+    assert error_line(result) == f"mcz: error: {out / 'db.mcz'}: cannot write the archive: No space left on device"
+    assert os.listdir(out) == []
+
+
+def test_full_disk_during_decompress_leaves_no_half_file(tmp_path, monkeypatch):
+    reference = tmp_path / "reference"
+    assert run("decompress", GOLDEN_LOSSLESS, "-o", reference, "-q").exit_code == 0
+    real_write = Path.write_bytes
+    calls = []
+
+    def full_on_second_file(self, data):
+        calls.append(self.name)
+        if len(calls) < 2:
+            return real_write(self, data)
+        with open(self, "wb") as fh:
+            fh.write(data[: len(data) // 2])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # as a full disk raises it: no file name
+
+    monkeypatch.setattr(Path, "write_bytes", full_on_second_file)
+    out = tmp_path / "out"
+    line = error_line(run("decompress", GOLDEN_LOSSLESS, "-o", out, "-q"))
+    failed = calls[1].split(".tmp-")[0].lstrip(".")
+    assert line == f"mcz: error: {out / failed}: No space left on device"
+    left = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert list(left) == [calls[0].split(".tmp-")[0].lstrip(".")]  # the file completed before; no temp file
+    assert left == {name: (reference / name).read_bytes() for name in left}

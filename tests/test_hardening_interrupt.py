@@ -1,0 +1,127 @@
+"""Interrupted runs (issue 5, item 4): Ctrl-C (SIGINT) or SIGTERM in the middle of `mcz compress`
+or `mcz decompress` leaves no .mcz, no temporary file and no half-written AMC, exits non-zero
+and says so in one line.
+
+Two kinds of run: a plain `mcz compress` killed while it works on a real folder, and runs whose
+file writing is slowed down (in the child only) so that the signal lands exactly while a
+temporary file is half written: the clean-up is then proven, not just likely.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mocapzip.archive import decompress
+
+GOLDEN_LOSSLESS = Path(__file__).parent / "golden" / "lossless_v1.mcz"
+MCZ = Path(sys.executable).with_name("mcz")
+TIMEOUT = 60
+
+# Runs the real `mcz` in the child, with one write slowed down: it writes half its data, creates the
+# marker file (so the test knows the temporary file is half written) and waits to be interrupted.
+SLOW_CHILD = r"""
+import os, sys, time
+from pathlib import Path
+from mocapzip.formats import mcz
+from mocapzip.cli.main import main
+
+marker = Path(os.environ["MCZ_TEST_MARKER"])
+
+def wait_for_signal():
+    marker.touch()
+    time.sleep(60)
+
+if sys.argv[1] == "compress":
+    real_payload = mcz._write_payload
+    def slow_payload(dataset, values):
+        real_payload(dataset, values[: len(values) // 2])
+        dataset.file.flush()
+        wait_for_signal()
+    mcz._write_payload = slow_payload
+else:
+    real_write, calls = Path.write_bytes, []
+    def slow_write(self, data):
+        calls.append(self)
+        if len(calls) < 3:
+            return real_write(self, data)
+        with open(self, "wb") as fh:
+            fh.write(data[: len(data) // 2])
+            fh.flush()
+            wait_for_signal()
+    Path.write_bytes = slow_write
+main(prog_name="mcz")
+"""
+
+
+def start(args: list, env: dict | None = None) -> subprocess.Popen:
+    # SIGINT may be ignored by whatever started the test run (a background job); the child gets Python's default.
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def interrupt(proc: subprocess.Popen, signum: int) -> str:
+    """Send `signum` to a running child; return its stderr after checking the exit and the message."""
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    proc.send_signal(signum)
+    _, stderr = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 1, (proc.returncode, stderr)
+    name = signal.Signals(signum).name
+    assert stderr.splitlines() == [f"mcz: error: interrupted ({name}); no partial file was left behind"], stderr
+    return stderr
+
+
+SIGNALS = pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+
+
+def wait_for(marker: Path, proc: subprocess.Popen) -> None:
+    deadline = time.monotonic() + TIMEOUT
+    while not marker.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the child never reached the slowed write"
+        time.sleep(0.02)
+
+
+@pytest.mark.parametrize("signum, jobs", [(signal.SIGINT, "1"), (signal.SIGTERM, "2")], ids=["SIGINT", "SIGTERM-j2"])
+def test_compress_of_a_real_folder_interrupted_mid_run(shared_data, tmp_path, signum, jobs):
+    """cmu/09 takes several seconds to compress; the signal comes while the codec (and its workers) work."""
+    proc = start([MCZ, "compress", shared_data / "cmu" / "09", "-o", tmp_path / "db.mcz", "-j", jobs])
+    time.sleep(2.5)  # past start-up (~0.6 s), well before the end (~10 s)
+    interrupt(proc, signum)
+    assert os.listdir(tmp_path) == []
+
+
+@SIGNALS
+def test_compress_interrupted_while_writing_the_archive(shared_data, tmp_path, signum):
+    out, marker = tmp_path / "out", tmp_path / "marker"
+    out.mkdir()
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    proc = start([sys.executable, "-c", SLOW_CHILD, "compress", shared_data / "cmu" / "09" / "09_01.amc",
+                  "--lossless", "-o", out / "db.mcz"], env)
+    wait_for(marker, proc)
+    (temporary,) = os.listdir(out)
+    assert temporary.startswith(".db.mcz.tmp-") and (out / temporary).stat().st_size > 0
+    interrupt(proc, signum)
+    assert os.listdir(out) == []
+
+
+@SIGNALS
+def test_decompress_interrupted_while_writing_an_amc(tmp_path, signum):
+    """The third file is half written when the signal comes: it must vanish, the two before stay whole."""
+    reference, out, marker = tmp_path / "reference", tmp_path / "out", tmp_path / "marker"
+    decompress(GOLDEN_LOSSLESS, reference)
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    proc = start([sys.executable, "-c", SLOW_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out], env)
+    wait_for(marker, proc)
+    assert any(name.endswith(".amc.tmp-" + str(proc.pid)) for name in os.listdir(out))
+    interrupt(proc, signum)
+    left = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert len(left) == 2 and all(not name.startswith(".") for name in left), sorted(left)
+    assert left == {name: (reference / name).read_bytes() for name in left}
+    assert len(os.listdir(reference)) == 3
