@@ -478,13 +478,13 @@ def _calibrate_clip(index: int):
 try:  # the codec's own layouts, compressed at a faster zstd level: a close, quick size estimate
     import zstandard
 
-    from .codec.entropy import _as_int_array, _planes, _split_leading_bits, _to_codes
+    from .codec.entropy import _as_int_array, _planes, split_leading_bits, _to_codes
 
     _ESTIMATOR = zstandard.ZstdCompressor(level=9)
 
     def _coded_size(ints: np.ndarray) -> int:
         codes = _to_codes(_as_int_array(ints).ravel(order="C"))
-        lengths, verbatim = _split_leading_bits(codes)
+        lengths, verbatim = split_leading_bits(codes)
         return 8 + min(len(_ESTIMATOR.compress(_planes(codes))), len(_ESTIMATOR.compress(lengths.tobytes())) + len(verbatim))
 except ImportError:  # the entropy module changed: use it as it is (slower, exact)
     def _coded_size(ints: np.ndarray) -> int:

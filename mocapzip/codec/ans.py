@@ -55,8 +55,6 @@ _HALVE_AT = 1 << 22  # a context's counts are halved when their total exceeds th
 _SEGMENT_STEPS = 1024  # time segments coded side by side are at least this long ...
 _MAX_SEGMENTS = 16  # ... and at most this many
 
-_POWERS_OF_TWO = np.uint64(1) << np.arange(64, dtype=np.uint64)
-
 
 def encode_residuals(matrix) -> bytes:
     """Encode a (rows x steps) integer matrix; `decode_residuals` needs its shape."""
@@ -65,8 +63,8 @@ def encode_residuals(matrix) -> bytes:
         raise ValueError("expected a 2-D integer matrix")
     signed = matrix.astype(np.int64)
     codes = ((signed << 1) ^ (signed >> 63)).view(np.uint64)
-    buckets = np.searchsorted(_POWERS_OF_TWO, codes, side="right").astype(np.int64)
-    raw = _pack_raw_bits(codes, buckets)
+    lengths, raw = entropy.split_leading_bits(codes)  # the verbatim bits as entropy.py stores them
+    buckets = lengths.astype(np.int64)
     layout = _Layout(*matrix.shape)
     lanes = layout.to_lanes(buckets)
     best = None
@@ -99,7 +97,7 @@ def decode_residuals(blob: bytes, rows: int, steps: int) -> np.ndarray:
     states = np.frombuffer(parts[1], "<u4").astype(np.int64)
     words = np.frombuffer(parts[2], "<u2").astype(np.int64)
     buckets = layout.from_lanes(_rans_decode(states, words, layout, scheme))
-    codes = _unpack_raw_bits(parts[3], buckets)
+    codes = entropy.join_leading_bits(buckets, parts[3])
     sign = np.uint64(0) - (codes & np.uint64(1))
     return ((codes >> np.uint64(1)) ^ sign).view(np.int64)
 
@@ -268,35 +266,3 @@ def _rans_decode(state, words, layout, scheme):
     if position != words.size or np.any(state != _STATE_LOW):
         raise ValueError("rANS stream is inconsistent")
     return buckets
-
-
-# --------------------------------------------------------- verbatim bits
-
-
-def _pack_raw_bits(codes, buckets) -> bytes:
-    """The bits below each leading one, bit position by bit position (a short loop)."""
-    n_raw = np.maximum(buckets - 1, 0)
-    planes = [
-        ((codes[n_raw > position] >> np.uint64(position)) & np.uint64(1)).astype(np.uint8)
-        for position in range(int(n_raw.max(initial=0)))
-    ]
-    return np.packbits(np.concatenate(planes)).tobytes() if planes else b""
-
-
-def _unpack_raw_bits(data: bytes, buckets) -> np.ndarray:
-    n_raw = np.maximum(buckets - 1, 0)
-    total = int(n_raw.sum())
-    if len(data) != (total + 7) // 8:
-        raise ValueError("verbatim bits do not match the bucket sizes")
-    bits = np.unpackbits(np.frombuffer(data, np.uint8))
-    if np.any(bits[total:]):
-        raise ValueError("padding bits are not zero")
-    bits = bits[:total].astype(np.uint64)
-    codes = np.where(buckets > 0, _POWERS_OF_TWO[n_raw], np.uint64(0)).astype(np.uint64)
-    start = 0
-    for position in range(int(n_raw.max(initial=0))):
-        has_bit = n_raw > position
-        end = start + int(has_bit.sum())
-        codes[has_bit] |= bits[start:end] << np.uint64(position)
-        start = end
-    return codes

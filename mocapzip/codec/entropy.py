@@ -176,7 +176,7 @@ def decode_ints(blob: bytes) -> np.ndarray:
             raise ValueError("bit length above 64")
         if zlib.crc32(rest) != crc:
             raise ValueError("CRC mismatch in the verbatim bits after the zstd frame")
-        codes = _join_leading_bits(lengths, rest)
+        codes = join_leading_bits(lengths, rest)
         rest = b""
     else:
         raise ValueError(f"unknown layout code {layout}")
@@ -208,12 +208,12 @@ def _bitmap(array, order, codes) -> bytes:
 
 
 def _bit_length(array, order, codes) -> bytes:
-    lengths, verbatim = _split_leading_bits(codes)
+    lengths, verbatim = split_leading_bits(codes)
     crc = zlib.crc32(verbatim).to_bytes(4, "little")
     return encode_bytes(_header(_BIT_LENGTH, array, order) + crc + lengths.tobytes()) + verbatim
 
 
-def _split_leading_bits(codes):
+def split_leading_bits(codes):
     """Bit length of each code (uint8) and the bits below each leading one, packed.
 
     The verbatim bits are written bit position by bit position (bit 0 of
@@ -230,7 +230,7 @@ def _split_leading_bits(codes):
     return lengths.astype(np.uint8), packed.tobytes()
 
 
-def _join_leading_bits(lengths: np.ndarray, verbatim: bytes) -> np.ndarray:
+def join_leading_bits(lengths: np.ndarray, verbatim: bytes) -> np.ndarray:
     n_verbatim = np.maximum(lengths - 1, 0)
     bits = _read_bits(verbatim, int(n_verbatim.sum())).astype(np.uint64)
     codes = np.where(lengths > 0, _POWERS_OF_TWO[n_verbatim], 0).astype(np.uint64)
