@@ -53,10 +53,11 @@ class Settings:
     split: list[float] | None = None  # forced R, P, T shares of error_cm
     dead_zone: float = 0.2
     basis_precision: float = 0.02  # basis rounding error per direction, as a share of error_cm
-    axis_weight_cm: float = 10.0  # weight of bone axis vectors against joint positions (clip.pose_weights)
+    axis_weight_cm: float = 5.0  # weight of bone axis vectors against joint positions (clip.pose_weights)
     fps: float = 120.0
     lossless: bool = False
     segment: bool = False  # cut long takes at PPCA change points, each segment coded on its own
+    coefficient_coder: str = "context"  # clip streams: "context" (codec/coefficients.py); "zstd" in format 1
 
 
 def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
@@ -104,7 +105,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         for k, name in enumerate(progress(class_names, desc="classes", unit="class")):
             members = [u for u, c in enumerate(unit_class) if c == name]
             basis, coded, errors = encode_class([units[u].clip_data for u in members], transform, settings, jobs)
-            streams[f"class/{k:04d}"] = basis.encode()
+            streams[f"class/{k:04d}"] = basis.encode(settings.coefficient_coder)
             classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
                                  "frames": sum(units[u].clip_data.motion.n_frames for u in members)})
             for u, code, error in zip(members, coded, errors):
@@ -113,7 +114,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
             parts = parts_of[i]
             if len(parts) == 1:
                 _, _, code, (mean_err, max_err) = coded_units[parts[0]]
-                streams[f"clip/{i:05d}"] = code.payload()
+                streams[f"clip/{i:05d}"] = code.payload(settings.coefficient_coder)
                 rows[i].update(error_cm=mean_err, max_error_cm=max_err)
             else:
                 streams.update(_segmented_take(rows[i], i, clip, [units[u] for u in parts],
@@ -221,7 +222,7 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
     streams, segments = {}, []
     for s, (unit, c, code, (seg_mean, seg_max)) in enumerate(zip(units, coded, codes, errors)):
         name = f"clip/{index:05d}/{s:03d}"
-        streams[name] = code.payload()
+        streams[name] = code.payload(settings.coefficient_coder)
         segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
                          "error_cm": seg_mean, "max_error_cm": seg_max})
     row.update(segments=segments, segment_overlap=OVERLAP, error_cm=mean_err, max_error_cm=max_err)
@@ -260,7 +261,7 @@ class Archive:
         self._reader = ArchiveReader(path)
         try:
             self.meta = self._json("meta")
-            self.settings = Settings(**self.meta["settings"])
+            self.settings = Settings(**{"coefficient_coder": "zstd", **self.meta["settings"]})  # format 1 had no field
         except (KeyError, TypeError, ValueError) as exc:
             self._reader.close()
             raise ArchiveError(f"meta: invalid ({exc})", self.path) from exc
@@ -324,8 +325,10 @@ class Archive:
 
     def _reconstruct(self, stream: str, class_index: int, n_frames: int):
         """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
-        coded = CodedClip.from_payload(self._reader.read(stream))
-        return reconstruct(coded, self._basis(class_index), self._transform, self.settings.dead_zone, n_frames)
+        basis = self._basis(class_index)
+        coded = CodedClip.from_payload(self._reader.read(stream), self.settings.coefficient_coder,
+                                       [(n_frames, basis.q), (n_frames, 4)])
+        return reconstruct(coded, basis, self._transform, self.settings.dead_zone, n_frames)
 
     def _model(self, k: int) -> SkeletonModel:
         if k not in self._models:
@@ -336,7 +339,7 @@ class Archive:
         if k not in self._bases:
             name = f"class/{k:04d}"
             try:
-                self._bases[k] = ClassBasis.decode(self._reader.read(name))
+                self._bases[k] = ClassBasis.decode(self._reader.read(name), self.settings.coefficient_coder)
             except (ValueError, KeyError) as exc:
                 raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
         return self._bases[k]

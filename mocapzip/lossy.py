@@ -11,13 +11,16 @@ because a yaw error moves a joint by (distance from root) x (angle).
 from __future__ import annotations
 
 import io
+import math
 import multiprocessing
 import struct
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
+from .codec.coefficients import decode_matrices, encode_matrices
 from .codec.entropy import decode_ints, encode_ints, encode_sparse
 from .codec.pca import CovarianceAccumulator, PcaBasis
 from .codec.quantise import UniformQuantiser
@@ -50,31 +53,42 @@ class ClassBasis:
         """Round mean and components to what the archive stores, so encoding sees the decoder's basis."""
         return cls.decode(cls(mean, components, np.asarray(steps, np.float32)).encode())
 
-    def encode(self) -> bytes:
+    def encode(self, coder: str = "context") -> bytes:
+        """`coder` as for `CodedClip.payload`: "context" writes the mean and basis integers
+        as two matrices of one range-coded stream, "zstd" (format 1) as two ints blobs."""
         steps = self.steps.astype("<f4")
         ints = np.round(self.components / steps.astype(np.float64)).astype(np.int64)
+        mean_ints = np.round(self.mean / MEAN_STEP_CM).astype(np.int64)
         out = io.BytesIO()
         out.write(struct.pack("<II", self.mean.size, self.components.shape[1]))
         out.write(steps.tobytes())
-        for blob in (encode_ints(np.round(self.mean / MEAN_STEP_CM).astype(np.int64)), encode_ints(ints)):
-            out.write(struct.pack("<I", len(blob)))
-            out.write(blob)
+        if coder == "context":
+            out.write(encode_matrices([mean_ints[:, None], ints]))
+        else:
+            for blob in (encode_ints(mean_ints), encode_ints(ints)):
+                out.write(struct.pack("<I", len(blob)))
+                out.write(blob)
         return out.getvalue()
 
     @classmethod
-    def decode(cls, blob: bytes) -> "ClassBasis":
+    def decode(cls, blob: bytes, coder: str = "context") -> "ClassBasis":
         m, q = struct.unpack_from("<II", blob, 0)
         pos = 8
         steps = np.frombuffer(blob, "<f4", q, pos)
         pos += 4 * q
-        parts = []
-        for _ in range(2):
-            (n,) = struct.unpack_from("<I", blob, pos)
-            parts.append(decode_ints(blob[pos + 4 : pos + 4 + n]))
-            pos += 4 + n
-        if pos != len(blob):
-            raise ValueError("class basis has trailing bytes")
-        mean = parts[0].astype(np.float64) * MEAN_STEP_CM
+        if coder == "context":
+            parts = decode_matrices(blob[pos:], [(m, 1), (m, q)])
+            if len(parts) != 2:
+                raise ValueError("class basis stream holds no basis")
+        else:
+            parts = []
+            for _ in range(2):
+                (n,) = struct.unpack_from("<I", blob, pos)
+                parts.append(decode_ints(blob[pos + 4 : pos + 4 + n]))
+                pos += 4 + n
+            if pos != len(blob):
+                raise ValueError("class basis has trailing bytes")
+        mean = parts[0].reshape(m).astype(np.float64) * MEAN_STEP_CM
         components = parts[1].reshape(m, q).astype(np.float64) * steps.astype(np.float64)
         return cls(mean, components, steps.copy())
 
@@ -84,7 +98,11 @@ class ClassBasis:
 
     def project(self, poses: np.ndarray) -> np.ndarray:
         """Least-squares coefficients (the stored basis is only nearly orthonormal)."""
-        return (poses - self.mean) @ np.linalg.pinv(self.components).T
+        return (poses - self.mean) @ self._projector
+
+    @cached_property
+    def _projector(self) -> np.ndarray:
+        return np.linalg.pinv(self.components).T
 
     def reconstruct(self, coefficients: np.ndarray) -> np.ndarray:
         return self.mean + coefficients @ self.components.T
@@ -105,37 +123,53 @@ def dequantise_curves(ints: np.ndarray, step: float, transform, dead_zone: float
 
 @dataclass
 class CodedClip:
-    """A clip's quantised coefficients: what the archive stores for it."""
+    """A clip's quantised coefficients: what the archive stores for it.
+
+    Two stream layouts, named by the archive's `coefficient_coder` setting:
+    "context" (coefficients.py: pose and root matrices in one range-coded stream) and
+    "zstd" (entropy.py: each matrix in its own zstd frame; archives of format version 1).
+    """
 
     pose_step: float
     pose_ints: np.ndarray  # (frames, Q) transform coefficients
     root_step: float
     root_ints: np.ndarray | None  # (frames, 4), or None for representations without a root track
 
-    def payload(self) -> bytes:
-        parts = [encode_sparse(self.pose_ints)]
-        if self.root_ints is not None:
-            parts.append(encode_sparse(self.root_ints))
+    def payload(self, coder: str = "context") -> bytes:
+        matrices = [self.pose_ints] if self.root_ints is None else [self.pose_ints, self.root_ints]
+        if coder == "context":
+            return struct.pack("<ff", self.pose_step, self.root_step) + encode_matrices(matrices)
+        parts = [encode_sparse(m) for m in matrices]
         head = struct.pack("<ddB", self.pose_step, self.root_step, len(parts))
         return head + b"".join(struct.pack("<I", len(p)) + p for p in parts)
 
     @classmethod
-    def from_payload(cls, blob: bytes) -> "CodedClip":
-        pose_step, root_step, n = struct.unpack_from("<ddB", blob, 0)
-        pos = 17
-        arrays = []
-        for _ in range(n):
-            (size,) = struct.unpack_from("<I", blob, pos)
-            arrays.append(decode_ints(blob[pos + 4 : pos + 4 + size]))
-            pos += 4 + size
-        if pos != len(blob):
-            raise ValueError("clip payload has trailing bytes")
-        return cls(pose_step, arrays[0], root_step, arrays[1] if n > 1 else None)
+    def from_payload(cls, blob: bytes, coder: str = "context", shapes=None) -> "CodedClip":
+        """`shapes`: the pose and root matrices' shapes when the caller knows them (checked first)."""
+        if coder == "context":
+            pose_step, root_step = struct.unpack_from("<ff", blob, 0)
+            arrays = decode_matrices(blob[8:], shapes)
+        else:
+            pose_step, root_step, n = struct.unpack_from("<ddB", blob, 0)
+            pos = 17
+            arrays = []
+            for _ in range(n):
+                (size,) = struct.unpack_from("<I", blob, pos)
+                arrays.append(decode_ints(blob[pos + 4 : pos + 4 + size]))
+                pos += 4 + size
+            if pos != len(blob):
+                raise ValueError("clip payload has trailing bytes")
+        if not 1 <= len(arrays) <= 2:
+            raise ValueError(f"clip payload holds {len(arrays)} matrices")
+        return cls(pose_step, arrays[0], root_step, arrays[1] if len(arrays) > 1 else None)
 
 
-SEARCH_STRIDE = 4  # the search scores every 4th frame (30 Hz at 120 Hz); the final check scores all
+SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), fewer for short clips; the final check all
 PCA_SHARES = (0.3, 0.5, 0.7)  # candidate shares of the budget for PCA; the rest goes to quantisation
 STEP_RANGE = (1e-4, 1e3)
+BANDS = (1.0, 0.2, 0.16, 0.13, 0.11, 0.095, 0.08, 0.07, 0.06, 0.05, 0.043, 0.036, 0.03, 0.025, 0.02)  # kept shares
+STEP_GUESS = 3.0  # typical step / target (CMU, 1 cm): where the step search starts
+MAX_TRUNCATION_SHARE = 0.85  # a band whose truncation alone costs more of the budget is not tried
 BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet the target  # quantiser steps searched, in cm-equivalent units
 
 _SHARED: dict = {}  # what forked workers read (clips are large: they are inherited, not pickled)
@@ -171,7 +205,8 @@ def encode_class(clips, transform, settings, jobs: int = 1):
                 precision /= 4  # the rounded basis alone costs too much error: store it finer
             else:
                 raise RuntimeError(f"no clip coding met {target} cm; worst {max(e[0] for e in errors):.3f} cm")
-            size = len(basis.encode()) + sum(len(c.payload()) for c in coded)
+            coder = settings.coefficient_coder
+            size = len(basis.encode(coder)) + sum(len(c.payload(coder)) for c in coded)
             if best is None or size < best[0]:
                 best = (size, basis, list(coded), list(errors))
     finally:
@@ -213,22 +248,36 @@ def _code_clip(index: int):
 
 
 def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None):
-    """The largest quantiser steps that keep this clip within `target`, verified on every frame.
+    """The smallest coding of this clip within `target`, verified on every frame.
+
+    Two knobs are searched: the quantiser step, and the band, the share of the temporal
+    coefficients (lowest frequencies first) the clip keeps at all. Dropping the top of the
+    band costs some error, paid for by a finer step, but high-frequency coefficients are
+    isolated and expensive to code, so a narrower band is often smaller overall. For each
+    band (widest first) the largest step within `target` is found and the coded size
+    measured; the search stops when a band cannot meet the target or sizes stop falling.
 
     Returns the coded clip and its achieved (mean, max) error. `split` (R, P, T shares)
-    forces the root track's share of the budget; otherwise one step serves both.
+    forces the root track's share of the budget and keeps the whole band (the thesis's
+    experiments); otherwise one step serves both.
     """
     n = clip.motion.n_frames
     pose_coef = transform.forward(basis.project(clip.poses))
     root_coef = None if clip.root is None else transform.forward(scale_root(clip.root))
-    sample = slice(None, None, SEARCH_STRIDE)
+    sample = slice(None, None, max(1, min(SEARCH_STRIDE, n // 256)))  # short clips: every frame
 
-    def code(pose_step: float, root_step: float) -> CodedClip:
-        return CodedClip(pose_step, UniformQuantiser(pose_step, dz).quantise(pose_coef), root_step,
-                         None if root_coef is None else UniformQuantiser(root_step, dz).quantise(root_coef))
+    def code(pose_step: float, root_step: float, band: float = 1.0) -> CodedClip:
+        pose_step, root_step = float(np.float32(pose_step)), float(np.float32(root_step))  # as stored
+        pose_ints = UniformQuantiser(pose_step, dz).quantise(pose_coef)
+        root_ints = None if root_coef is None else UniformQuantiser(root_step, dz).quantise(root_coef)
+        kept = math.ceil(band * n)
+        pose_ints[kept:] = 0
+        if root_ints is not None:
+            root_ints[kept:] = 0
+        return CodedClip(pose_step, pose_ints, root_step, root_ints)
 
-    def error(pose_step: float, root_step: float, exact: str | None = None) -> float:
-        poses, root = reconstruct(code(pose_step, root_step), basis, transform, dz, n, sample)
+    def error(pose_step: float, root_step: float, band: float = 1.0, exact: str | None = None) -> float:
+        poses, root = reconstruct(code(pose_step, root_step, band), basis, transform, dz, n, sample)
         if exact == "poses":
             poses = clip.poses[sample]
         elif exact == "root":
@@ -239,15 +288,50 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
         r_share = split[0] / sum(split)
         root_step, _ = largest_step(lambda s: error(1.0, s, exact="poses"), r_share * target, *STEP_RANGE)
         pose_step, _ = largest_step(lambda s: error(s, 1.0, exact="root"), (1 - r_share) * target, *STEP_RANGE)
+        band = 1.0
     else:
-        pose_step, _ = largest_step(lambda s: error(s, s), target, *STEP_RANGE)
+        pose_step, band = _smallest_over_bands(code, error, target)
         root_step = pose_step
-    coded = code(pose_step, root_step)
+    coded = code(pose_step, root_step, band)
     achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), final=True)
     while achieved[0] > target and coded.pose_step > STEP_RANGE[0]:  # the sampled search missed: tighten
-        coded = code(coded.pose_step * 0.9, coded.root_step * 0.9)
+        coded = code(coded.pose_step * 0.9, coded.root_step * 0.9, band)
         achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), final=True)
     return coded, achieved
+
+
+def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
+    """(step, band) of the smallest coding within `target` on the sampled frames (see code_clip).
+
+    The error of dropping a band's top alone (finest step) is cheap to score, so bands whose
+    truncation takes more than MAX_TRUNCATION_SHARE of the budget are never step-searched.
+    Sizes fall as the band narrows until the step must shrink fast, so the search starts at
+    the narrowest admissible band and widens while the size keeps falling.
+    """
+    finest = STEP_RANGE[0]
+
+    def admissible(i: int) -> bool:
+        return error(finest, finest, BANDS[i]) <= MAX_TRUNCATION_SHARE * target
+
+    # BANDS narrow as i grows and the truncation error grows with them; BANDS[0] keeps everything
+    widest, narrowest = 0, len(BANDS) - 1
+    if not admissible(narrowest):
+        while narrowest - widest > 1:
+            middle = (widest + narrowest) // 2
+            widest, narrowest = (middle, narrowest) if admissible(middle) else (widest, middle)
+        narrowest = widest
+    best, best_size = None, None
+    low, high, guess = *STEP_RANGE, STEP_GUESS * target
+    for band in BANDS[narrowest::-1]:
+        step, err = largest_step(lambda s: error(s, s, band), target, low, high, guess=guess)
+        if err > target:
+            break
+        size = len(code(step, step, band).payload())
+        if best is not None and size >= best_size:
+            break
+        best, best_size = (step, band), size
+        low, high, guess = step, step * 8, step * 1.25  # a wider band allows a coarser step
+    return best if best is not None else (finest, 1.0)
 
 
 def reconstruct(coded: CodedClip, basis: ClassBasis, transform, dead_zone: float, n_frames: int,

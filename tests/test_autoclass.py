@@ -9,9 +9,12 @@ import json
 import numpy as np
 import pytest
 
-from mocapzip.autoclass import ByteProxy, ClipStats, _weighted_truncation, anneal, kss_ppca, parse_auto, plan
+from mocapzip.autoclass import (ByteProxy, ClipStats, _largest_step, _Moments, _pca, _weighted_truncation, anneal,
+                                kss_ppca, parse_auto, plan, residual_per_frame)
 from mocapzip.codec.pca import PcaBasis
+from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
+from mocapzip.ppca import PpcaModel
 
 
 def subspace_clips(rng, groups=3, per_group=4, dim=12, rank=2, frames=60):
@@ -47,6 +50,41 @@ def test_kss_and_annealing_recover_subspaces(seed):
     assert same_partition(kss_ppca(stats, 3, seed=seed), truth)
     assert same_partition(anneal(stats, 3, dims=2, seed=seed), truth)
     np.testing.assert_array_equal(kss_ppca(stats, 3, seed=seed), kss_ppca(stats, 3, seed=seed))  # deterministic
+
+
+def test_stacked_moments_match_per_clip_statistics():
+    """The vectorised scores, merges and residuals (`_Moments`) agree with the per-clip formulas."""
+    stats, _ = subspace_clips(np.random.default_rng(3))
+    moments = _Moments.of(stats)
+    weights = np.random.default_rng(4).uniform(0, 1, len(stats))
+    model = PpcaModel.from_pca(_pca(stats[:4]))
+    expected = [model.mean_log_density_from_stats(s.count, s.mean, s.scatter) for s in stats]
+    np.testing.assert_allclose(moments.mean_log_densities(model), expected, rtol=1e-9)
+    pca, direct = moments.pca(weights), _pca(stats, weights)
+    np.testing.assert_allclose(pca.mean, direct.mean, rtol=1e-9)
+    np.testing.assert_allclose(pca.variances, direct.variances, rtol=1e-7, atol=1e-9)
+    basis = direct.components[:, :2]
+    np.testing.assert_allclose(moments.residuals(direct.mean, basis),
+                               [residual_per_frame(s, direct.mean, basis) for s in stats], rtol=1e-7, atol=1e-9)
+
+
+def test_largest_step_is_the_largest_within_budget():
+    """Regula falsi finds, to STEP_TOLERANCE, the step a fine bisection finds."""
+    rng = np.random.default_rng(6)
+    curves = np.cumsum(rng.normal(size=(400, 8)), axis=0) * np.linspace(4, 0.2, 8)
+    gains = rng.uniform(0.5, 3.0, 8)
+
+    def error(step):
+        q = UniformQuantiser(step, 0.2)
+        return float((((curves - q.dequantise(q.quantise(curves))) ** 2).sum(axis=0) * gains).sum())
+
+    for budget in (0.5, 40.0, 4000.0):
+        step = _largest_step(curves, gains, budget, 0.2)
+        lo, hi = np.log(1e-4), np.log(1e3)
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if error(np.exp(mid)) <= budget else (lo, mid)
+        assert error(step) <= budget and step == pytest.approx(np.exp(lo), rel=0.03)
 
 
 def test_weighted_truncation_from_stats_matches_frames():
@@ -99,6 +137,8 @@ def test_auto_classes_on_real_walks_and_runs(short_clips):
     assert 1 <= chosen.k <= 3
     assert chosen.estimated_bytes == min(c["bytes"] for c in chosen.candidates)
     assert chosen.estimated_bytes <= proxy.partition_bytes(np.zeros(len(clips), int))
+    best_kss = min((c for c in chosen.candidates if c["method"] != "anneal"), key=lambda c: c["bytes"])
+    assert {c["k"] for c in chosen.candidates if c["method"] == "anneal"} <= {best_kss["k"]}  # annealing: best K only
     # the byte estimate tracks the codec: one class needs more components than walk or run alone
     proxy.partition_bytes(walk.astype(int))
     details = {len(k): v for k, v in proxy.details.items()}

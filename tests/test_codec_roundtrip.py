@@ -19,6 +19,7 @@ from mocapzip.cli.main import main
 from mocapzip.codec.lossless import decode_channels, encode_channels
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
+from mocapzip.formats.mcz import FORMAT_VERSION
 from mocapzip.kinematics import forward
 from mocapzip.skeleton import SkeletonModel
 
@@ -117,12 +118,15 @@ def test_lossless_channel_coding_is_exact_on_every_shared_amc(shared_data):
         assert np.array_equal(decode_channels(encode_channels(values)), values), path
 
 
-def test_golden_archives_keep_decoding(shared_data):
-    with Archive(GOLDEN / "lossless_v1.mcz") as archive:
+@pytest.mark.parametrize("version", range(1, FORMAT_VERSION + 1))
+def test_golden_archives_keep_decoding(shared_data, version):
+    with Archive(GOLDEN / f"lossless_v{version}.mcz") as archive:
+        assert archive.format_version == version
         for i, row in enumerate(archive.clips):
             original = read_amc(shared_data / "cmu" / "09" / row["path"])
             assert np.array_equal(archive.decode(i).values, original.values)
-    with Archive(GOLDEN / "lossy_v1.mcz") as archive:
+    with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
+        assert archive.format_version == version
         skeleton = read_asf(shared_data / "cmu/09/09.asf")
         assert archive.skeleton_text(0).encode("latin-1") == (shared_data / "cmu/09/09.asf").read_bytes()
         model = SkeletonModel.from_asf(skeleton)

@@ -20,8 +20,9 @@ import pytest
 from click.testing import CliRunner
 
 from mocapzip.cli.main import main
+from mocapzip.formats.mcz import FORMAT_VERSION
 
-GOLDEN_LOSSY = Path(__file__).parent / "golden" / "lossy_v1.mcz"
+GOLDEN_LOSSY = Path(__file__).parent / "golden" / f"lossy_v{FORMAT_VERSION}.mcz"  # the newest codec
 SECTION = re.compile(r"(header|index): |stream '(meta|skeletons|class/\d{4}|clip/\d{5})': .*|"
                      r"clip/\d{5} \(\S+\): damaged")
 MAX_SECONDS_PER_CASE = 10.0  # a hang shows up as a failure, not a stuck suite

@@ -210,7 +210,7 @@ def test_lossless_decoder_only_raises_value_error(blob):
     only_format_errors(decode_channels, blob, ValueError)
 
 
-ARCHIVES = [(GOLDEN / name).read_bytes() for name in ("lossy_v1.mcz", "lossless_v1.mcz")]
+ARCHIVES = [(GOLDEN / name).read_bytes() for name in ("lossy_v1.mcz", "lossy_v2.mcz", "lossless_v2.mcz")]
 _names = itertools.count()
 
 

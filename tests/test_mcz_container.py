@@ -19,9 +19,11 @@ from mocapzip.formats import MocapFormatError
 from mocapzip.formats import mcz
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader, write_archive
 
-GOLDEN_V1 = Path(__file__).parent / "golden" / "container_v1.mcz"
-# Written once by make_golden_container.py; repeated here literally so these bytes are checked forever.
-GOLDEN_V1_STREAMS = {
+GOLDEN = Path(__file__).parent / "golden"
+GOLDEN_NEWEST = GOLDEN / f"container_v{FORMAT_VERSION}.mcz"
+# Written once per format version by make_golden_container.py; repeated here literally so these
+# bytes are checked forever.
+GOLDEN_STREAMS = {
     "meta.json": b'{"codec":"golden","clips":["07_01"]}',
     "skeletons/07.asf": b":version 1.10\n:name VICON\n:units\n  mass 1.0\n",
     "clips/07_01/coefficients": bytes(range(256)) * 3,
@@ -58,11 +60,12 @@ def test_empty_archive(tmp_path):
     assert read_all(tmp_path / "e.mcz") == ("1", {})
 
 
-def test_golden_v1_still_decodes():
-    with ArchiveReader(GOLDEN_V1) as reader:
-        assert (reader.format_version, reader.tool_version) == (1, "golden-container-v1")
-        assert reader.names() == list(GOLDEN_V1_STREAMS)
-        assert {name: reader.read(name) for name in reader.names()} == GOLDEN_V1_STREAMS
+@pytest.mark.parametrize("version", range(1, FORMAT_VERSION + 1))
+def test_golden_containers_still_decode(version):
+    with ArchiveReader(GOLDEN / f"container_v{version}.mcz") as reader:
+        assert (reader.format_version, reader.tool_version) == (version, f"golden-container-v{version}")
+        assert reader.names() == list(GOLDEN_STREAMS)
+        assert {name: reader.read(name) for name in reader.names()} == GOLDEN_STREAMS
 
 
 def test_read_touches_only_its_own_stream(tmp_path):
@@ -193,13 +196,13 @@ def damage_outcomes(tmp_path, variants) -> dict[str, int]:
             assert_names_section(exc)
             outcomes["detected"] += 1
         else:
-            assert result == ("golden-container-v1", GOLDEN_V1_STREAMS)
+            assert result == (f"golden-container-v{FORMAT_VERSION}", GOLDEN_STREAMS)
             outcomes["harmless"] += 1
     return outcomes
 
 
 def test_single_byte_damage_is_detected_or_harmless(tmp_path):
-    golden = GOLDEN_V1.read_bytes()
+    golden = GOLDEN_NEWEST.read_bytes()
     step = max(1, len(golden) // 2000)  # every byte of today's ~2 KB file; stays < 10 s if it grows
 
     def flipped():
@@ -215,7 +218,7 @@ def test_single_byte_damage_is_detected_or_harmless(tmp_path):
 
 
 def test_truncation_is_detected(tmp_path):
-    golden = GOLDEN_V1.read_bytes()
+    golden = GOLDEN_NEWEST.read_bytes()
     outcomes = damage_outcomes(tmp_path, (golden[:size] for size in range(len(golden))))
     print("truncations:", outcomes)
     assert outcomes["harmless"] == 0

@@ -59,6 +59,8 @@ __all__ = [
     "decode_bytes",
     "pack_blobs",
     "unpack_blobs",
+    "write_varint",
+    "ByteReader",
 ]
 
 _COMPRESSOR = zstandard.ZstdCompressor(level=19, write_checksum=True)
@@ -108,15 +110,15 @@ def pack_blobs(blobs) -> bytes:
     """
     blobs = [bytes(blob) for blob in blobs]
     header = bytearray()
-    _write_varint(header, len(blobs))
+    write_varint(header, len(blobs))
     for blob in blobs:
-        _write_varint(header, len(blob))
+        write_varint(header, len(blob))
     return bytes(header) + b"".join(blobs)
 
 
 def unpack_blobs(data: bytes) -> list:
     """Inverse of `pack_blobs`; raises ValueError on inconsistent lengths."""
-    reader = _Reader(bytes(data))
+    reader = ByteReader(bytes(data))
     lengths = [reader.varint() for _ in range(reader.varint())]
     blobs = [reader.take(length) for length in lengths]
     if not reader.at_end():
@@ -150,7 +152,7 @@ def encode_sparse(matrix) -> bytes:
 def decode_ints(blob: bytes) -> np.ndarray:
     """Decode the output of `encode_ints` or `encode_sparse`."""
     payload, rest = _decompress_frame(blob)
-    reader = _Reader(payload)
+    reader = ByteReader(payload)
     layout = reader.byte()
     dtype_index = reader.byte()
     if dtype_index >= len(_DTYPES):
@@ -294,7 +296,7 @@ def _header(layout: int, array: np.ndarray, order: str) -> bytes:
     dtype_index = _DTYPES.index(array.dtype.newbyteorder("="))
     header = bytearray([layout, dtype_index, _ORDERS.index(order), array.ndim])
     for size in array.shape:
-        _write_varint(header, size)
+        write_varint(header, size)
     return bytes(header)
 
 
@@ -305,7 +307,7 @@ def _planes(codes: np.ndarray) -> bytes:
     return bytes([width]) + as_bytes[:, :width].T.tobytes()
 
 
-def _read_planes(reader: "_Reader", count: int) -> np.ndarray:
+def _read_planes(reader: "ByteReader", count: int) -> np.ndarray:
     width = reader.byte()
     if width > 8:
         raise ValueError(f"invalid byte width {width}")
@@ -325,7 +327,7 @@ def _read_bits(data: bytes, count: int) -> np.ndarray:
     return bits[:count]
 
 
-def _write_varint(out: bytearray, value: int) -> None:
+def write_varint(out: bytearray, value: int) -> None:
     """Unsigned LEB128: 7 bits per byte, high bit set on all but the last byte."""
     if value < 0:
         raise ValueError("varints are unsigned")
@@ -335,7 +337,7 @@ def _write_varint(out: bytearray, value: int) -> None:
     out.append(value)
 
 
-class _Reader:
+class ByteReader:
     """Sequential reader over bytes that reports short or malformed data as ValueError."""
 
     def __init__(self, data: bytes):
