@@ -45,7 +45,7 @@ from .formats.errors import MocapFormatError
 from .ppca import DEFAULT_VARIANCE_SHARE, PpcaModel
 
 PCA_SHARES = (0.3, 0.5, 0.7)  # as lossy.PCA_SHARES
-SEARCH_STRIDE = 4  # frames scored when calibrating, as lossy.SEARCH_STRIDE
+SEARCH_STRIDE = 4  # calibration scores every 4th frame at most (MAX_CALIBRATION_FRAMES caps the count)
 CALIBRATION_Q = (8, 16, 24, 32, 48, 64, 96)  # truncations scored per clip
 MAX_CALIBRATION_FRAMES = 80  # frames scored per clip when calibrating (every 4th, or sparser)
 ERROR_POWER = 1.5  # truncation and quantisation joint errors combine as e^p = t^p + q^p (measured)

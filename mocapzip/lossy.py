@@ -1,9 +1,12 @@
 """The lossy codec: one PCA basis per class, a temporal transform of the projected curves,
-uniform dead-zone quantisation and zstd, with the error budget found by search.
+uniform dead-zone quantisation and context-modelled range coding (codec/coefficients.py),
+with the error budget found by search.
 
 Why one quantiser step for every coefficient of a clip: the PCA basis and the DCT are
 orthonormal, so a coefficient error of size e costs the same squared pose error
-wherever it sits; equal steps are the rate-distortion optimum (equal slopes). The
+wherever it sits; equal steps are the rate-distortion optimum (equal slopes) while
+coefficients are dense. At 1 cm the non-zero high frequencies are isolated and cost more
+bits than their error is worth, so each clip also gets a band (see `code_clip`). The
 root track is scaled into the same units (cm) first, yaw by a typical joint radius,
 because a yaw error moves a joint by (distance from root) x (angle).
 """
@@ -164,13 +167,13 @@ class CodedClip:
         return cls(pose_step, arrays[0], root_step, arrays[1] if len(arrays) > 1 else None)
 
 
-SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), fewer for short clips; the final check all
+SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), denser below 2,048 frames; the final check all
 PCA_SHARES = (0.3, 0.5, 0.7)  # candidate shares of the budget for PCA; the rest goes to quantisation
-STEP_RANGE = (1e-4, 1e3)
+STEP_RANGE = (1e-4, 1e3)  # quantiser steps searched, in cm-equivalent units
 BANDS = (1.0, 0.2, 0.16, 0.13, 0.11, 0.095, 0.08, 0.07, 0.06, 0.05, 0.043, 0.036, 0.03, 0.025, 0.02)  # kept shares
 STEP_GUESS = 3.0  # typical step / target (CMU, 1 cm): where the step search starts
 MAX_TRUNCATION_SHARE = 0.85  # a band whose truncation alone costs more of the budget is not tried
-BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet the target  # quantiser steps searched, in cm-equivalent units
+BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet the target
 
 _SHARED: dict = {}  # what forked workers read (clips are large: they are inherited, not pickled)
 
