@@ -126,6 +126,8 @@ def render(command, git, elapsed, rd, sm, tt, head, rules, log_lines, data) -> s
             "per-sequence results), so against it mcz's per-clip numbers include the advantage of sharing; the "
             "'basis per subject' variant (section V with K = 1 per subject) shares as mcz does, and is the "
             "like-for-like comparison.", ""]
+    out += ["PPCA class recognition (thesis tables 4.5 to 4.8) and `--classes auto` have their own page, "
+            "[classification.md](classification.md), written by `python benchmarks/classification.py`.", ""]
     out += ["## How it is measured", "", rules, ""]
     out += ["## (a) O'Kane's thesis, tables 4.1 to 4.4, rerun", "",
             thesis_tables.__doc__.split("\n\n", 2)[2].strip(), "",
