@@ -116,14 +116,6 @@ def _pca_of(total: float, mean: np.ndarray, covariance: np.ndarray) -> PcaBasis:
     return PcaBasis(mean, components, variances, max(int(round(total)), 1))
 
 
-def residual_per_frame(stat: ClipStats, mean: np.ndarray, basis: np.ndarray) -> float:
-    """Mean squared residual per frame of a clip projected on the affine subspace (mean, basis)."""
-    delta = stat.mean - mean
-    second = stat.scatter / stat.count + np.outer(delta, delta)
-    projected = float(((second @ basis) * basis).sum())
-    return max(float(np.trace(second) - projected), 0.0)
-
-
 # --- k-subspaces with PPCA (thesis chapter 5) ---------------------------------------------------
 
 

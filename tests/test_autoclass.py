@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mocapzip.autoclass import (ByteProxy, ClipStats, _largest_step, _Moments, _pca, _weighted_truncation, anneal,
-                                kss_ppca, parse_auto, plan, residual_per_frame)
+                                kss_ppca, parse_auto, plan)
 from mocapzip.codec.pca import PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
@@ -50,6 +50,13 @@ def test_kss_and_annealing_recover_subspaces(seed):
     assert same_partition(kss_ppca(stats, 3, seed=seed), truth)
     assert same_partition(anneal(stats, 3, dims=2, seed=seed), truth)
     np.testing.assert_array_equal(kss_ppca(stats, 3, seed=seed), kss_ppca(stats, 3, seed=seed))  # deterministic
+
+
+def residual_per_frame(stat, mean: np.ndarray, basis: np.ndarray) -> float:
+    """The per-clip formula: mean squared residual per frame on the affine subspace (mean, basis)."""
+    delta = stat.mean - mean
+    second = stat.scatter / stat.count + np.outer(delta, delta)
+    return max(float(np.trace(second) - ((second @ basis) * basis).sum()), 0.0)
 
 
 def test_stacked_moments_match_per_clip_statistics():

@@ -135,9 +135,7 @@ def _encode_matrix(encoder: Encoder, matrix: np.ndarray) -> None:
                 encoder.bit(models.length, context * _LENGTH_CONTEXTS + min(step, _LENGTH_CONTEXTS - 1), 1)
             if length < _MAX_LENGTH:
                 encoder.bit(models.length, context * _LENGTH_CONTEXTS + min(length, _LENGTH_CONTEXTS - 1), 0)
-            if length >= 2:
-                encoder.bit(models.below_leading, length, (magnitude >> (length - 2)) & 1)
-                encoder.direct(magnitude, length - 2)
+            _encode_below_leading(encoder, models.below_leading, magnitude, length)
             encoder.direct(value < 0, 1)
         previous, before = current, previous
 
@@ -161,10 +159,7 @@ def _decode_matrix(decoder: Decoder, rows: int, columns: int) -> np.ndarray:
                 models.length, context * _LENGTH_CONTEXTS + min(length, _LENGTH_CONTEXTS - 1)
             ):
                 length += 1
-            magnitude = 1
-            if length >= 2:
-                magnitude = (2 | decoder.bit(models.below_leading, length)) << (length - 2)
-                magnitude |= decoder.direct(length - 2)
+            magnitude = _decode_below_leading(decoder, models.below_leading, length)
             current[row] = magnitude
             signs[row] = decoder.direct(1) == 1
         if end:
@@ -181,9 +176,7 @@ def _encode_end(encoder: Encoder, models: _Models, end: int) -> None:
         bit = (length >> shift) & 1
         encoder.bit(models.end_length, node, bit)
         node = (node << 1) | bit
-    if length >= 2:
-        encoder.bit(models.end_below, length, (end >> (length - 2)) & 1)
-        encoder.direct(end, length - 2)
+    _encode_below_leading(encoder, models.end_below, end, length)
 
 
 def _decode_end(decoder: Decoder, models: _Models) -> int:
@@ -191,7 +184,20 @@ def _decode_end(decoder: Decoder, models: _Models) -> int:
     for _ in range(_END_BITS):
         node = (node << 1) | decoder.bit(models.end_length, node)
     length = node - (1 << _END_BITS)
+    return _decode_below_leading(decoder, models.end_below, length) if length else 0
+
+
+def _encode_below_leading(encoder: Encoder, models: list, value: int, length: int) -> None:
+    """The bits of `value` (bit length `length`) below its leading one: the first modelled
+    per length (it is skewed for the decaying magnitudes coded here), the rest direct."""
+    if length >= 2:
+        encoder.bit(models, length, (value >> (length - 2)) & 1)
+        encoder.direct(value, length - 2)
+
+
+def _decode_below_leading(decoder: Decoder, models: list, length: int) -> int:
+    """The value of bit length `length` >= 1 whose lower bits `_encode_below_leading` wrote."""
     if length < 2:
-        return length
-    end = (2 | decoder.bit(models.end_below, length)) << (length - 2)
-    return end | decoder.direct(length - 2)
+        return 1
+    value = (2 | decoder.bit(models, length)) << (length - 2)
+    return value | decoder.direct(length - 2)
