@@ -4,6 +4,7 @@ Streams (see docs/format.md, "Streams written by the codec"):
   meta        zstd JSON: settings, skeleton and class tables, one row per clip
   skeletons   zstd JSON list of the ASF texts, byte for byte (they compress well together)
   class/NNNN  a class's quantised PCA mean and basis (lossy mode)
+  priors      zstd bytes: where the clip streams' models start (coefficient coder "primed")
   clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
   clip/NNNNN/SSS  segment SSS of a take cut by --segment (its row in meta lists the segments)
 """
@@ -25,6 +26,7 @@ from .autoclass import auto_classes, parse_auto
 from .classes import assign_classes
 from .clip import LoadedClip, channels_from, load_clips, pose_weights, skeleton_params
 from .codec import get_stage
+from .codec.coefficients import Priors
 from .codec.entropy import decode_bytes, encode_bytes
 from .codec.lossless import decode_channels, encode_channels
 from .formats.amc import AmcStyle, Motion, format_amc
@@ -57,7 +59,10 @@ class Settings:
     fps: float = 120.0
     lossless: bool = False
     segment: bool = False  # cut long takes at PPCA change points, each segment coded on its own
-    coefficient_coder: str = "context"  # clip streams: "context" (codec/coefficients.py); "zstd" in format 1
+    # clip streams: "primed" (codec/coefficients.py, models start from the archive's priors; format 3),
+    # "context" (models start at 1/2; format 2), "zstd" (format 1); "auto" (compress only): "primed"
+    # when the priors pay for themselves, else "context". Archives store the coder used.
+    coefficient_coder: str = "auto"
 
 
 def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
@@ -93,6 +98,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         parts_of[unit.clip].append(u)
 
     streams: dict[str, bytes] = {}
+    coded_streams: dict[str, CodedClip] = {}  # lossy clip streams, serialised once the priors are known
     rows = [_clip_row(c, class_names.index(unit_class[parts_of[i][0]])) for i, c in enumerate(clips)]
     classes_meta = []
     if settings.lossless:
@@ -114,11 +120,14 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
             parts = parts_of[i]
             if len(parts) == 1:
                 _, _, code, (mean_err, max_err) = coded_units[parts[0]]
-                streams[f"clip/{i:05d}"] = code.payload(settings.coefficient_coder)
+                coded_streams[f"clip/{i:05d}"] = code
                 rows[i].update(error_cm=mean_err, max_error_cm=max_err)
             else:
-                streams.update(_segmented_take(rows[i], i, clip, [units[u] for u in parts],
-                                               [coded_units[u] for u in parts], transform, settings))
+                coded_streams.update(_segmented_take(rows[i], i, clip, [units[u] for u in parts],
+                                                     [coded_units[u] for u in parts], transform, settings))
+        coder, clip_streams = _serialise_clips(coded_streams, settings.coefficient_coder)
+        streams.update(clip_streams)
+        settings = replace(settings, coefficient_coder=coder)
 
     stored_settings = asdict(settings)
     if not settings.segment:
@@ -196,9 +205,28 @@ def _unit_classes(sources, units: list[_Unit], settings: Settings, jobs: int, re
     return auto_classes([unit.clip_data for unit in units], k, settings, jobs=jobs, report=report)
 
 
+def _serialise_clips(coded: dict[str, CodedClip], coder: str) -> tuple[str, dict[str, bytes]]:
+    """The clip streams, and the coder they use. For "primed" the archive's priors are trained
+    on every clip (in stream order) and stored as the "priors" stream. "auto" takes "primed"
+    when that is smaller, counting the priors (about 400 bytes: they pay from roughly 10,000
+    frames on), else "context"."""
+    names = sorted(coded)
+    if coder in ("context", "zstd"):
+        return coder, {name: coded[name].payload(coder) for name in names}
+    priors = Priors.train([coded[name].matrices for name in names])
+    primed = {name: coded[name].payload("primed", priors) for name in names}
+    primed["priors"] = encode_bytes(priors.encode())
+    if coder == "primed":
+        return coder, primed
+    plain = {name: coded[name].payload("context") for name in names}
+    if sum(map(len, primed.values())) < sum(map(len, plain.values())):
+        return "primed", primed
+    return "context", plain
+
+
 def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit], coded: list, transform,
-                    settings: Settings) -> dict[str, bytes]:
-    """Streams of a take cut into segments; fills its row's `segments`, `segment_overlap`, `class`
+                    settings: Settings) -> dict[str, CodedClip]:
+    """Coded streams of a take cut into segments; fills its row's `segments`, `segment_overlap`, `class`
     (the first segment's) and its achieved error, measured on the take joined as `Archive.decode` does.
 
     Every segment met the target on its coded frames, and the crossfade only mixes frames both
@@ -222,7 +250,7 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
     streams, segments = {}, []
     for s, (unit, c, code, (seg_mean, seg_max)) in enumerate(zip(units, coded, codes, errors)):
         name = f"clip/{index:05d}/{s:03d}"
-        streams[name] = code.payload(settings.coefficient_coder)
+        streams[name] = code
         segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
                          "error_cm": seg_mean, "max_error_cm": seg_max})
     row.update(segments=segments, segment_overlap=OVERLAP, error_cm=mean_err, max_error_cm=max_err)
@@ -266,6 +294,7 @@ class Archive:
             self._reader.close()
             raise ArchiveError(f"meta: invalid ({exc})", self.path) from exc
         self._skeleton_texts = None
+        self._priors: Priors | None = None
         self._bases: dict[int, ClassBasis] = {}
         self._models: dict[int, SkeletonModel] = {}
         self._transform = get_stage(self.settings.transform)
@@ -292,6 +321,20 @@ class Archive:
         if self._skeleton_texts is None:
             self._skeleton_texts = self._json("skeletons")
         return self._skeleton_texts[index]
+
+    @property
+    def priors(self) -> Priors | None:
+        """Where the clip streams' models start (coefficient coder "primed"), else None."""
+        if self.settings.coefficient_coder != "primed" or self.settings.lossless:
+            return None
+        if self._priors is None:
+            try:
+                self._priors = Priors.decode(decode_bytes(self._reader.read("priors")))
+            except KeyError:
+                raise ArchiveError("priors: stream missing", self.path) from None
+            except ValueError as exc:
+                raise ArchiveError(f"priors: damaged ({exc})", self.path) from exc
+        return self._priors
 
     def decode(self, index: int) -> Motion:
         """The clip's motion as decoded (lossy: within the stored error of the original)."""
@@ -327,7 +370,7 @@ class Archive:
         """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
         basis = self._basis(class_index)
         coded = CodedClip.from_payload(self._reader.read(stream), self.settings.coefficient_coder,
-                                       [(n_frames, basis.q), (n_frames, 4)])
+                                       [(n_frames, basis.q), (n_frames, 4)], self.priors)
         return reconstruct(coded, basis, self._transform, self.settings.dead_zone, n_frames)
 
     def _model(self, k: int) -> SkeletonModel:

@@ -430,12 +430,12 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
     with Archive(path) as opened:
         sizes = opened.stream_sizes()
         meta_rows, skeleton_names = opened.clips, [s["name"] for s in opened.meta["skeletons"]]
-        coder = opened.settings.coefficient_coder
+        coder, priors = opened.settings.coefficient_coder, opened.priors
     if sorted(r["path"] for r in meta_rows) != sorted(by_path):
         raise BenchError("the archive does not hold the clips the bench found", path)
     clip_streams = [sizes[f"clip/{i:05d}"] for i in range(len(meta_rows))]
     with ArchiveReader(path) as reader:
-        parts = [_payload_parts(reader.read(f"clip/{i:05d}"), coder) for i in range(len(meta_rows))]
+        parts = [_payload_parts(reader.read(f"clip/{i:05d}"), coder, priors) for i in range(len(meta_rows))]
     class_frames: dict[int, int] = {}
     for r in meta_rows:
         class_frames[r["class"]] = class_frames.get(r["class"], 0) + r["frames"]
@@ -467,7 +467,7 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
                        rows, clips, distances, speed)
 
 
-def _payload_parts(blob: bytes, coder: str) -> dict:
+def _payload_parts(blob: bytes, coder: str, priors) -> dict:
     """Pose and root-track bytes of a lossy clip stream (see `CodedClip.payload`).
 
     The context coder writes both matrices into one stream, so the pose share is the size
@@ -476,10 +476,10 @@ def _payload_parts(blob: bytes, coder: str) -> dict:
     from .lossy import CodedClip
 
     try:
-        coded = CodedClip.from_payload(blob, coder)
+        coded = CodedClip.from_payload(blob, coder, priors=priors)
     except (ValueError, struct.error):
         return {"pose_bytes": None, "root_bytes": None}
-    pose_bytes = len(CodedClip(coded.pose_step, coded.pose_ints, coded.root_step, None).payload(coder))
+    pose_bytes = len(CodedClip(coded.pose_step, coded.pose_ints, coded.root_step, None).payload(coder, priors))
     if coded.root_ints is None:
         return {"pose_bytes": len(blob), "root_bytes": 0}
     return {"pose_bytes": pose_bytes, "root_bytes": len(blob) - pose_bytes}
@@ -532,7 +532,7 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
             warnings.simplefilter("ignore")
             decoded = parse_amc(text.encode("latin-1", "replace"), clip.path)
         errors, distances[clip.path] = _measure(clip, models, models[clip.source.asf], decoded)
-        rows.append({**_sizes(clip, len(payload), len(payload)), **_payload_parts(payload, "context"), "basis_bytes": 0, **errors})
+        rows.append({**_sizes(clip, len(payload), len(payload)), **_payload_parts(payload, "context", None), "basis_bytes": 0, **errors})
     settings = {"error_cm": task["error_cm"], "representation": task["representation"],
                 "transform": _transform_config(task["transform"], options.wavelet), "classes": NO_PCA,
                 "split": task["split"]}

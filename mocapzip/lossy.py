@@ -23,7 +23,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .codec.coefficients import decode_matrices, encode_matrices
+from .codec.coefficients import Priors, decode_matrices, encode_matrices
 from .codec.entropy import decode_ints, encode_ints, encode_sparse
 from .codec.pca import CovarianceAccumulator, PcaBasis
 from .codec.quantise import UniformQuantiser
@@ -57,16 +57,22 @@ class ClassBasis:
         return cls.decode(cls(mean, components, np.asarray(steps, np.float32)).encode())
 
     def encode(self, coder: str = "context") -> bytes:
-        """`coder` as for `CodedClip.payload`: "context" writes the mean and basis integers
-        as two matrices of one range-coded stream, "zstd" (format 1) as two ints blobs."""
+        """`coder` as for `CodedClip.payload`. "context" and "primed" write one range-coded
+        stream of three matrices: the mean's integers, each basis row's reference row and the
+        basis integers less their reference row's (`_reference_rows`); bases are too few to
+        train priors on. "zstd" (format 1) writes the mean and basis integers as two ints blobs."""
         steps = self.steps.astype("<f4")
         ints = np.round(self.components / steps.astype(np.float64)).astype(np.int64)
         mean_ints = np.round(self.mean / MEAN_STEP_CM).astype(np.int64)
         out = io.BytesIO()
         out.write(struct.pack("<II", self.mean.size, self.components.shape[1]))
         out.write(steps.tobytes())
-        if coder == "context":
-            out.write(encode_matrices([mean_ints[:, None], ints]))
+        if coder != "zstd":
+            references = _reference_rows(ints)
+            rows = np.arange(len(ints))
+            residuals = ints - np.where(references[:, None] >= 0, ints[references], 0)
+            offsets = np.where(references >= 0, rows - references, 0)  # 0: no reference
+            out.write(encode_matrices([mean_ints[:, None], offsets[:, None], residuals]))
         else:
             for blob in (encode_ints(mean_ints), encode_ints(ints)):
                 out.write(struct.pack("<I", len(blob)))
@@ -79,10 +85,13 @@ class ClassBasis:
         pos = 8
         steps = np.frombuffer(blob, "<f4", q, pos)
         pos += 4 * q
-        if coder == "context":
-            parts = decode_matrices(blob[pos:], [(m, 1), (m, q)])
-            if len(parts) != 2:
-                raise ValueError("class basis stream holds no basis")
+        if coder != "zstd":
+            parts = decode_matrices(blob[pos:])
+            shapes = [part.shape for part in parts]
+            if shapes == [(m, 1), (m, 1), (m, q)]:
+                parts = [parts[0], _undo_references(parts[2], parts[1].ravel())]
+            elif shapes != [(m, 1), (m, q)]:  # format 2 wrote no reference rows
+                raise ValueError(f"class basis matrices of shapes {shapes} for a {m} x {q} basis")
         else:
             parts = []
             for _ in range(2):
@@ -111,6 +120,34 @@ class ClassBasis:
         return self.mean + coefficients @ self.components.T
 
 
+def _reference_rows(ints: np.ndarray) -> np.ndarray:
+    """For each basis row, the earlier row it is best coded against (-1: none).
+
+    Pose columns come in related groups: a child joint's position and axis move with its
+    parent's, so their basis rows are alike, and the difference is smaller to code. Each
+    row takes the earlier row that leaves the smallest sum of absolute differences, if
+    that beats coding the row as it is.
+    """
+    references = np.full(len(ints), -1, np.int64)
+    for row in range(1, len(ints)):
+        costs = np.abs(ints[row] - ints[:row]).sum(axis=1)
+        best = int(np.argmin(costs))
+        if costs[best] < np.abs(ints[row]).sum():
+            references[row] = best
+    return references
+
+
+def _undo_references(residuals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Basis integers from `_reference_rows` residuals and offsets (row - reference, 0: none)."""
+    rows = np.arange(len(offsets))
+    if np.any((offsets < 0) | (offsets > rows)):
+        raise ValueError("class basis refers to a row that does not come before")
+    ints = residuals.copy()
+    for row in np.flatnonzero(offsets):
+        ints[row] += ints[row - offsets[row]]
+    return ints
+
+
 def scale_root(root: np.ndarray) -> np.ndarray:
     """Root track (x, y, z cm, yaw rad) in cm-equivalent units."""
     return root * np.array([1.0, 1.0, 1.0, YAW_RADIUS_CM])
@@ -128,9 +165,10 @@ def dequantise_curves(ints: np.ndarray, step: float, transform, dead_zone: float
 class CodedClip:
     """A clip's quantised coefficients: what the archive stores for it.
 
-    Two stream layouts, named by the archive's `coefficient_coder` setting:
-    "context" (coefficients.py: pose and root matrices in one range-coded stream) and
-    "zstd" (entropy.py: each matrix in its own zstd frame; archives of format version 1).
+    Three stream layouts, named by the archive's `coefficient_coder` setting:
+    "primed" (coefficients.py: pose and root matrices in one range-coded stream whose models
+    start from the archive's priors; format version 3), "context" (the same, models starting
+    at 1/2; format 2) and "zstd" (entropy.py: each matrix in its own zstd frame; format 1).
     """
 
     pose_step: float
@@ -138,20 +176,27 @@ class CodedClip:
     root_step: float
     root_ints: np.ndarray | None  # (frames, 4), or None for representations without a root track
 
-    def payload(self, coder: str = "context") -> bytes:
-        matrices = [self.pose_ints] if self.root_ints is None else [self.pose_ints, self.root_ints]
-        if coder == "context":
-            return struct.pack("<ff", self.pose_step, self.root_step) + encode_matrices(matrices)
+    @property
+    def matrices(self) -> list[np.ndarray]:
+        return [self.pose_ints] if self.root_ints is None else [self.pose_ints, self.root_ints]
+
+    def payload(self, coder: str = "context", priors: Priors | None = None) -> bytes:
+        """`priors`: the archive's, for coder "primed"."""
+        matrices = self.matrices
+        if coder in ("context", "primed"):
+            priors = _priors_for(coder, priors)
+            return struct.pack("<ff", self.pose_step, self.root_step) + encode_matrices(matrices, priors)
         parts = [encode_sparse(m) for m in matrices]
         head = struct.pack("<ddB", self.pose_step, self.root_step, len(parts))
         return head + b"".join(struct.pack("<I", len(p)) + p for p in parts)
 
     @classmethod
-    def from_payload(cls, blob: bytes, coder: str = "context", shapes=None) -> "CodedClip":
+    def from_payload(cls, blob: bytes, coder: str = "context", shapes=None,
+                     priors: Priors | None = None) -> "CodedClip":
         """`shapes`: the pose and root matrices' shapes when the caller knows them (checked first)."""
-        if coder == "context":
+        if coder in ("context", "primed"):
             pose_step, root_step = struct.unpack_from("<ff", blob, 0)
-            arrays = decode_matrices(blob[8:], shapes)
+            arrays = decode_matrices(blob[8:], shapes, _priors_for(coder, priors))
         else:
             pose_step, root_step, n = struct.unpack_from("<ddB", blob, 0)
             pos = 17
@@ -165,6 +210,12 @@ class CodedClip:
         if not 1 <= len(arrays) <= 2:
             raise ValueError(f"clip payload holds {len(arrays)} matrices")
         return cls(pose_step, arrays[0], root_step, arrays[1] if len(arrays) > 1 else None)
+
+
+def _priors_for(coder: str, priors: Priors | None) -> Priors | None:
+    if coder == "primed" and priors is None:
+        raise ValueError("coefficient coder 'primed' needs the archive's priors")
+    return priors if coder == "primed" else None
 
 
 SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), denser below 2,048 frames; the final check all
@@ -208,7 +259,7 @@ def encode_class(clips, transform, settings, jobs: int = 1):
                 precision /= 4  # the rounded basis alone costs too much error: store it finer
             else:
                 raise RuntimeError(f"no clip coding met {target} cm; worst {max(e[0] for e in errors):.3f} cm")
-            coder = settings.coefficient_coder
+            coder = "zstd" if settings.coefficient_coder == "zstd" else "context"  # priors come later
             size = len(basis.encode(coder)) + sum(len(c.payload(coder)) for c in coded)
             if best is None or size < best[0]:
                 best = (size, basis, list(coded), list(errors))

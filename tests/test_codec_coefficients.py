@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 import scipy.fft
 
-from mocapzip.codec.coefficients import decode_matrices, encode_matrices
-from mocapzip.codec.entropy import encode_sparse
+from mocapzip.archive import _serialise_clips
+from mocapzip.codec.coefficients import Priors, decode_matrices, encode_matrices
+from mocapzip.codec.entropy import decode_bytes, encode_sparse
 from mocapzip.codec.rangecoder import Decoder, Encoder, new_models
+from mocapzip.lossy import CodedClip
 
 
 def quantised_dct(rng, n_frames, n_curves, step):
@@ -49,6 +51,64 @@ def test_smaller_than_zstd_on_sparse_spectra():
     q = quantised_dct(np.random.default_rng(5), 1000, 30, 40.0)
     assert 0.01 < np.count_nonzero(q) / q.size < 0.2
     assert len(encode_matrices([q])) < 0.9 * len(encode_sparse(q))
+
+
+def clip_like_streams(seed, count):
+    """(pose, root) matrix pairs of different lengths and steps, as an archive's clips."""
+    rng = np.random.default_rng(seed)
+    return [[quantised_dct(rng, int(n), 30, 60.0), quantised_dct(rng, int(n), 4, 20.0)]
+            for n in rng.integers(100, 600, size=count)]
+
+
+@pytest.mark.parametrize("matrix", list(sample_matrices()), ids=lambda m: f"{m.dtype}{m.shape}")
+def test_round_trip_with_priors(matrix):
+    priors = Priors.decode(Priors.train(clip_like_streams(7, 5)).encode())
+    (decoded,) = decode_matrices(encode_matrices([matrix], priors), priors=priors)
+    np.testing.assert_array_equal(decoded, matrix)
+
+
+def test_priors_make_short_streams_smaller():
+    """Models that start from what many clips taught them skip the learning each clip pays for."""
+    priors = Priors.train(clip_like_streams(8, 40))
+    held_out = clip_like_streams(9, 20)  # not in the training set
+    fresh = sum(len(encode_matrices(matrices)) for matrices in held_out)
+    primed = sum(len(encode_matrices(matrices, priors)) for matrices in held_out)
+    assert primed < 0.97 * fresh
+    for matrices in held_out[:3]:
+        for decoded, matrix in zip(decode_matrices(encode_matrices(matrices, priors), priors=priors), matrices):
+            np.testing.assert_array_equal(decoded, matrix)
+
+
+def test_primed_streams_need_their_priors():
+    streams = clip_like_streams(10, 3)
+    priors = Priors.train(streams)
+    blob = encode_matrices(streams[0], priors)
+    with pytest.raises(ValueError, match="priors"):
+        decode_matrices(blob)
+    pose_only = Priors.train([matrices[:1] for matrices in streams])  # no priors for the root matrix
+    with pytest.raises(ValueError, match="no priors for coefficient matrix 1"):
+        decode_matrices(blob, priors=pose_only)
+    table = priors.encode()
+    for damaged in (table[:-1], table + b"\x00", b"\x09" + table[1:], b""):
+        with pytest.raises(ValueError):
+            Priors.decode(damaged)
+
+
+def test_auto_coder_stores_priors_only_where_they_pay():
+    rng = np.random.default_rng(12)
+    many = {f"clip/{i:05d}": CodedClip(0.5, quantised_dct(rng, n, 40, 60.0), 0.5, quantised_dct(rng, n, 4, 20.0))
+            for i, n in enumerate(rng.integers(200, 800, size=40))}
+    coder, streams = _serialise_clips(many, "auto")
+    assert coder == "primed" and "priors" in streams
+    plain = _serialise_clips(many, "context")[1]
+    assert sum(map(len, streams.values())) < sum(map(len, plain.values()))
+    priors = Priors.decode(decode_bytes(streams["priors"]))
+    for name, coded in many.items():
+        back = CodedClip.from_payload(streams[name], "primed", priors=priors)
+        assert np.array_equal(back.pose_ints, coded.pose_ints) and np.array_equal(back.root_ints, coded.root_ints)
+    one = dict(list(many.items())[:1])
+    assert _serialise_clips(one, "auto")[0] == "context"  # 400 bytes of priors for one clip do not pay
+    assert _serialise_clips(one, "primed")[0] == "primed"
 
 
 def test_refuses_values_it_cannot_code():

@@ -127,6 +127,7 @@ def test_golden_archives_keep_decoding(shared_data, version):
             assert np.array_equal(archive.decode(i).values, original.values)
     with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
         assert archive.format_version == version
+        assert archive.settings.coefficient_coder == {1: "zstd", 2: "context"}.get(version, "primed")
         skeleton = read_asf(shared_data / "cmu/09/09.asf")
         assert archive.skeleton_text(0).encode("latin-1") == (shared_data / "cmu/09/09.asf").read_bytes()
         model = SkeletonModel.from_asf(skeleton)

@@ -20,10 +20,10 @@ import pytest
 from click.testing import CliRunner
 
 from mocapzip.cli.main import main
-from mocapzip.formats.mcz import FORMAT_VERSION
+from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveReader
 
 GOLDEN_LOSSY = Path(__file__).parent / "golden" / f"lossy_v{FORMAT_VERSION}.mcz"  # the newest codec
-SECTION = re.compile(r"(header|index): |stream '(meta|skeletons|class/\d{4}|clip/\d{5})': .*|"
+SECTION = re.compile(r"(header|index): |stream '(meta|skeletons|priors|class/\d{4}|clip/\d{5})': .*|"
                      r"clip/\d{5} \(\S+\): damaged")
 MAX_SECONDS_PER_CASE = 10.0  # a hang shows up as a failure, not a stuck suite
 
@@ -117,7 +117,11 @@ def test_every_sampled_truncation_is_detected(tmp_path, hang_guard):
 def test_damaged_clip_is_named_by_its_path(tmp_path):
     """A CRC failure in a clip stream names the clip's stored path, so the user knows what is lost."""
     data = bytearray(GOLDEN_LOSSY.read_bytes())
-    data[-10] ^= 0x55  # the last stream: the second clip
+    with ArchiveReader(GOLDEN_LOSSY) as reader:
+        stream = reader.read("clip/00001")  # the second clip
+    start = data.find(stream)
+    assert start > 0 and data.count(stream) == 1
+    data[start + len(stream) // 2] ^= 0x55
     damaged = tmp_path / "d.mcz"
     damaged.write_bytes(bytes(data))
     for command in (("test", damaged), ("info", damaged), ("decompress", damaged, "-o", tmp_path / "out")):

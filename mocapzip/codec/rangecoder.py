@@ -6,8 +6,9 @@ Adaptive binary models handle any number of contexts with no stored tables
 and learn within a few dozen bits, which matters when every clip is coded on
 its own for random access.
 
-Each model is an 11-bit probability that the next bit is 0, moved 1/2**SHIFT
-of the way towards each coded bit.  `Encoder.bit` and `Decoder.bit` take the
+Each model is an 11-bit probability that the next bit is 0, moved 1/2**shift
+of the way towards each coded bit: shift 4 (fast) for models that start at
+1/2, 5 for models that start from trained priors (`coefficients.Priors`).  `Encoder.bit` and `Decoder.bit` take the
 model array and an index into it, so callers keep one array per kind of
 decision.  Bits known to be near 50/50 (signs, low bits of magnitudes) go
 through `direct`, which costs exactly one bit.
@@ -20,7 +21,7 @@ __all__ = ["Encoder", "Decoder", "new_models"]
 
 _PROB_BITS = 11
 _ONE = 1 << _PROB_BITS
-_SHIFT = 4  # adaptation rate: fast, because a clip's streams are short
+FAST_SHIFT = 4  # adaptation rate of models that start at 1/2: fast, because a clip's streams are short
 _TOP = 1 << 24
 _MASK32 = 0xFFFFFFFF
 
@@ -31,7 +32,8 @@ def new_models(count: int) -> list[int]:
 
 
 class Encoder:
-    def __init__(self):
+    def __init__(self, shift: int = FAST_SHIFT):
+        self._adaptation = shift
         self._low = 0
         self._range = _MASK32
         self._cache = 0
@@ -44,10 +46,10 @@ class Encoder:
         if bit:
             self._low += bound
             self._range -= bound
-            models[index] = p - (p >> _SHIFT)
+            models[index] = p - (p >> self._adaptation)
         else:
             self._range = bound
-            models[index] = p + ((_ONE - p) >> _SHIFT)
+            models[index] = p + ((_ONE - p) >> self._adaptation)
         while self._range < _TOP:
             self._range <<= 8
             self._shift_low()
@@ -83,7 +85,8 @@ class Encoder:
 class Decoder:
     """Reads what `Encoder` wrote; `finish` checks that exactly all bytes were used."""
 
-    def __init__(self, data: bytes):
+    def __init__(self, data: bytes, shift: int = FAST_SHIFT):
+        self._adaptation = shift
         self._data = b"\x00" + bytes(data)
         if len(self._data) < 5:
             raise ValueError("range-coded stream shorter than its 4-byte minimum")
@@ -103,12 +106,12 @@ class Decoder:
         bound = (self._range >> _PROB_BITS) * p
         if self._code < bound:
             self._range = bound
-            models[index] = p + ((_ONE - p) >> _SHIFT)
+            models[index] = p + ((_ONE - p) >> self._adaptation)
             bit = 0
         else:
             self._code -= bound
             self._range -= bound
-            models[index] = p - (p >> _SHIFT)
+            models[index] = p - (p >> self._adaptation)
             bit = 1
         while self._range < _TOP:
             self._range <<= 8
