@@ -93,9 +93,9 @@ def _summary_line(s: dict) -> str:
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1, show_default="all cores",
               help="Worker processes for the error search.")
 @click.option("--cache-mb", type=click.IntRange(min=0), default=512, show_default=True,
-              help="Memory for clips kept between the codec's passes over a class; clips beyond it are read "
-                   "again from disk, so memory stays bounded however large the database. -c auto and --segment "
-                   "compare all clips at once and keep every clip in memory regardless.")
+              help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
+                   "so memory stays bounded however large the database. -c auto and --segment keep every clip "
+                   "in memory regardless.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 @click.option("--skip-bad", is_flag=True,
               help="Leave out clips that cannot be read (listed on stderr, in --json and in the archive) "

@@ -8,7 +8,6 @@ kinematics, against the original clip's joint positions.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -133,18 +132,16 @@ class ClipReader:
     (None: no limit) and `load` re-reads only the others. A kept clip leaves when the codec
     is done with it (`forget`). There is no eviction: the codec scans a class's clips
     several times in the same order, and least-recently-used eviction would drop each clip
-    just before its next use. Forked workers see the clips kept before the fork but keep
-    none of their own: those would die with the worker.
+    just before its next use. Forked workers see the clips kept before the fork.
     """
 
     def __init__(self, representation_name: str | None, axis_weight_cm: float = 1.0,
                  budget_bytes: int | None = None):
-        self.representation_name, self.axis_weight_cm, self.budget_bytes = (representation_name, axis_weight_cm,
-                                                                            budget_bytes)
+        self.representation_name, self.axis_weight_cm = representation_name, axis_weight_cm
+        self.budget_bytes = budget_bytes
         self._skeletons: dict = {}  # ASF path -> (skeleton, model): small, read once
         self._kept: dict[ClipSource, LoadedClip] = {}
         self._kept_bytes = 0
-        self._owner = os.getpid()
 
     def read(self, source: ClipSource) -> LoadedClip:
         """Parse the clip (checking every bone line against its skeleton) and convert it; raises
@@ -168,8 +165,6 @@ class ClipReader:
 
     def keep(self, clip: LoadedClip) -> None:
         """Hold `clip` for later `load`s if it fits in the budget."""
-        if clip.source in self._kept or os.getpid() != self._owner:
-            return
         if self.budget_bytes is None or self._kept_bytes + clip.nbytes <= self.budget_bytes:
             self._kept[clip.source] = clip
             self._kept_bytes += clip.nbytes
