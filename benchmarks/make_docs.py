@@ -3,7 +3,7 @@
     python benchmarks/make_docs.py [--data ../shared/data] [--docs docs] [--work bench-out] [-j 2]
 
 Runs, in order: ratio_distortion.py (the whole shared CMU set and the curves), speed_memory.py
-(largest clips, BLAS threads; the whole-set speed comes from the previous run) and
+(largest clips, BLAS threads, bounded memory; the whole-set speed comes from the previous run) and
 thesis_tables.py (tables 4.1 to 4.4). Every number on the page comes from these runs; the page
 records the command, the git commit and this run's own output.
 """

@@ -92,6 +92,10 @@ def _summary_line(s: dict) -> str:
               help="Frame rate stored in the archive (ASF/AMC do not carry one; CMU and HDM05 are 120).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1, show_default="all cores",
               help="Worker processes for the error search.")
+@click.option("--cache-mb", type=click.IntRange(min=0), default=512, show_default=True,
+              help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
+                   "so memory stays bounded however large the database. -c auto and --segment keep every clip "
+                   "in memory regardless.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 @click.option("--skip-bad", is_flag=True,
               help="Leave out clips that cannot be read (listed on stderr, in --json and in the archive) "
@@ -100,7 +104,7 @@ def _summary_line(s: dict) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
 def compress(inputs, output, error_cm, lossless, representation, transform, wavelet, level, classes, segment, split,
-             asf, fps, jobs, force, skip_bad, quiet, as_json):
+             asf, fps, jobs, cache_mb, force, skip_bad, quiet, as_json):
     """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
 
     Each AMC pairs with the one ASF in its folder (or --asf). Inputs are kept; OUTPUT is
@@ -122,7 +126,8 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
     settings = archive.Settings(error_cm=error_cm, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=fps, lossless=lossless,
                                 segment=segment)
-    summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad)
+    summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad,
+                               cache_bytes=cache_mb << 20)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     elif not quiet:

@@ -11,6 +11,7 @@ import itertools
 import json
 import os
 import secrets
+import tempfile
 import zlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -21,7 +22,7 @@ import zstandard
 
 from .errors import MocapFormatError
 
-__all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "write_archive"]
+__all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
 
 FORMAT_VERSION = 3
 MAGIC = "MCZ mocapzip archive"
@@ -38,7 +39,8 @@ def _header_crc(format_version: int, tool_version: str, index_crc32: int) -> int
 
 
 def write_archive(
-    path: str | os.PathLike, streams: Mapping[str, bytes], *, tool_version: str, overwrite: bool = False
+    path: str | os.PathLike, streams: Mapping[str, bytes | SpooledStream], *, tool_version: str,
+    overwrite: bool = False
 ) -> int:
     """Write `streams` (in iteration order) to `path` atomically; return the file size in bytes.
 
@@ -46,29 +48,24 @@ def write_archive(
     `path`, so readers never see half an archive and a failure leaves nothing behind.
     """
     path = os.fspath(path)
-    if not isinstance(tool_version, str) or not tool_version or "\0" in tool_version:
-        raise ValueError(f"tool_version must be a non-empty string without NUL, got {tool_version!r}")
-    if not overwrite and os.path.lexists(path):
-        raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
+    _check_target(path, tool_version, overwrite)
     directory = os.path.dirname(os.path.abspath(path))
     tmp = os.path.join(directory, f".{os.path.basename(path)}.tmp-{secrets.token_hex(6)}")
-    try:
-        _write_hdf5(tmp, streams, tool_version)
-        fd = os.open(tmp, os.O_RDONLY)
+    with _failures_naming(path):
         try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        if not overwrite and os.path.lexists(path):  # appeared while we were writing
-            raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
-        os.replace(tmp, path)
-    except BaseException as exc:  # also KeyboardInterrupt/SystemExit: never leave a temporary file
-        if os.path.lexists(tmp):
-            os.unlink(tmp)
-        if isinstance(exc, OSError) and not isinstance(exc, FileExistsError) and exc.errno:
-            # HDF5 reports e.g. a full disk in several lines naming the temporary file: name the archive.
-            raise OSError(exc.errno, f"cannot write the archive: {os.strerror(exc.errno)}", path) from exc
-        raise
+            _write_hdf5(tmp, streams, tool_version)
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            if not overwrite and os.path.lexists(path):  # appeared while we were writing
+                raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
+            os.replace(tmp, path)
+        except BaseException:  # also KeyboardInterrupt/SystemExit: never leave a temporary file
+            if os.path.lexists(tmp):
+                os.unlink(tmp)
+            raise
     if os.name == "posix":  # make the rename itself durable
         fd = os.open(directory, os.O_RDONLY)
         try:
@@ -78,24 +75,114 @@ def write_archive(
     return os.path.getsize(path)
 
 
-def _write_hdf5(tmp: str, streams: Mapping[str, bytes], tool_version: str) -> None:
+@contextmanager
+def _failures_naming(path: str) -> Iterator[None]:
+    """An I/O failure (e.g. a full disk) as one line naming the archive, not a temporary file.
+
+    HDF5 reports such failures in several lines naming the temporary file; a spool write names none.
+    """
+    try:
+        yield
+    except OSError as exc:
+        if isinstance(exc, FileExistsError) or not exc.errno:
+            raise
+        raise OSError(exc.errno, f"cannot write the archive: {os.strerror(exc.errno)}", path) from exc
+
+
+def _check_target(path: str, tool_version, overwrite: bool) -> None:
+    if not isinstance(tool_version, str) or not tool_version or "\0" in tool_version:
+        raise ValueError(f"tool_version must be a non-empty string without NUL, got {tool_version!r}")
+    if not overwrite and os.path.lexists(path):
+        raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
+
+
+class SpooledStream:
+    """A stream's bytes parked in an `ArchiveWriter`'s spool file, read back when their turn comes."""
+
+    def __init__(self, spool, offset: int, length: int, crc32: int):
+        self._spool, self._offset, self._length, self.crc32 = spool, offset, length, crc32
+
+    def __len__(self) -> int:
+        return self._length
+
+    def read(self) -> bytes:
+        self._spool.seek(self._offset)
+        return self._spool.read(self._length)
+
+
+class ArchiveWriter:
+    """An archive built from streams added one at a time, in any order, then written by `commit`.
+
+    The index (names, lengths, CRC32s) comes before the payload in the file, and a codec knows
+    its metadata stream last, so streams cannot be written to their place as they come. They wait
+    in an unnamed temporary file beside the archive instead of in memory: a database larger than
+    memory compresses with flat memory use. The archive is byte for byte what `write_archive`
+    writes for the same streams in the same order. Use as a context manager (it frees the spool).
+    """
+
+    def __init__(self, path: str | os.PathLike, *, tool_version: str, overwrite: bool = False):
+        self.path, self._tool_version, self._overwrite = os.fspath(path), tool_version, overwrite
+        _check_target(self.path, tool_version, overwrite)  # refuse before any work is done
+        # Unnamed where the OS allows: nothing left after a crash, nothing seen beside the archive.
+        with _failures_naming(self.path):
+            self._spool = tempfile.TemporaryFile(dir=os.path.dirname(os.path.abspath(self.path)))
+        self._streams: dict[str, SpooledStream] = {}
+
+    def add(self, name: str, data: bytes) -> None:
+        """Park stream `name`; names are unique."""
+        _check_stream(name, data)
+        if name in self._streams:
+            raise ValueError(f"stream {name!r} added twice")
+        data = memoryview(data).cast("B")
+        with _failures_naming(self.path):
+            offset = self._spool.seek(0, os.SEEK_END)
+            self._spool.write(data)
+        self._streams[name] = SpooledStream(self._spool, offset, len(data), zlib.crc32(data))
+
+    @property
+    def names(self) -> list[str]:
+        """Names of the streams added so far, in the order they came."""
+        return list(self._streams)
+
+    def commit(self, order: list[str]) -> int:
+        """Write the archive with every added stream, in `order`; return its size (see `write_archive`)."""
+        if sorted(order) != sorted(self._streams):
+            raise ValueError("the order must name every added stream once")
+        return write_archive(self.path, {name: self._streams[name] for name in order},
+                             tool_version=self._tool_version, overwrite=self._overwrite)
+
+    def close(self) -> None:
+        self._spool.close()
+
+    def __enter__(self) -> ArchiveWriter:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+def _check_stream(name, value) -> None:
+    if not isinstance(name, str) or not name:
+        raise TypeError(f"stream names must be non-empty str, got {name!r}")
+    if not isinstance(value, (bytes, bytearray, memoryview, SpooledStream)):
+        raise TypeError(f"stream {name!r} must be bytes, got {type(value).__name__}")
+
+
+def _write_hdf5(tmp: str, streams: Mapping[str, bytes | SpooledStream], tool_version: str) -> None:
     # meta_block_size=0 and "all metadata before any raw data" keep HDF5 from leaving 2 KB
     # half-empty aggregation blocks inside the file: the empty archive shrinks from ~2 KB to ~1 KB.
     with h5py.File(tmp, "x", libver="latest", track_order=False, meta_block_size=0) as f:
         items = list(streams.items())
         for name, value in items:
-            if not isinstance(name, str) or not name:
-                raise TypeError(f"stream names must be non-empty str, got {name!r}")
-            if not isinstance(value, (bytes, bytearray, memoryview)):
-                raise TypeError(f"stream {name!r} must be bytes, got {type(value).__name__}")
-        values = [memoryview(value).cast("B") for _, value in items]
+            _check_stream(name, value)
+        values = [value if isinstance(value, SpooledStream) else memoryview(value).cast("B") for _, value in items]
         lengths = [len(v) for v in values]
         offsets = [0, *itertools.accumulate(lengths)]
         index_doc = {
             "names": [name for name, _ in items],
             "offsets": offsets[:-1],
             "lengths": lengths,
-            "crc32": [zlib.crc32(v) for v in values],
+            "crc32": [v.crc32 if isinstance(v, SpooledStream) else zlib.crc32(v) for v in values],
         }
         index = zstandard.ZstdCompressor(level=19).compress(
             json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode()
@@ -114,12 +201,13 @@ def _write_hdf5(tmp: str, streams: Mapping[str, bytes], tool_version: str) -> No
         _write_payload(payload_ds, values)
 
 
-def _write_payload(dataset: h5py.Dataset, values: list[memoryview]) -> None:
+def _write_payload(dataset: h5py.Dataset, values: list[memoryview | SpooledStream]) -> None:
     """Copy the streams back to back into `dataset`, about 1 MiB per HDF5 write."""
     start, batch, batch_len = 0, [], 0
 
     def flush() -> None:
         nonlocal start, batch, batch_len
+        batch = [v.read() if isinstance(v, SpooledStream) else v for v in batch]
         data = batch[0] if len(batch) == 1 else b"".join(batch)  # no copy of a lone big stream
         dataset[start : start + batch_len] = np.frombuffer(data, np.uint8)
         start, batch, batch_len = start + batch_len, [], 0

@@ -23,18 +23,19 @@ import numpy as np
 
 from . import __version__
 from .autoclass import auto_classes, parse_auto
-from .classes import assign_classes
-from .clip import LoadedClip, channels_from, load_clips, pose_weights, skeleton_params
+from .classes import class_namer
+from .clip import ClipReader, ClipsOnDemand, LoadedClip, channels_from, pose_weights, skeleton_params
 from .codec import get_stage
 from .codec.coefficients import Priors
 from .codec.entropy import decode_bytes, encode_bytes
 from .codec.lossless import decode_channels, encode_channels
+from .codec.pca import CovarianceAccumulator
 from .formats.amc import AmcStyle, Motion, format_amc
 from .formats.asf import parse_asf
 from .formats.errors import MocapFormatError
-from .formats.mcz import ArchiveError, ArchiveReader, write_archive
-from .inputs import find_clips
-from .lossy import ClassBasis, CodedClip, code_clip, encode_class, reconstruct
+from .formats.mcz import ArchiveError, ArchiveReader, ArchiveWriter
+from .inputs import ClipSource, find_clips, record_skip
+from .lossy import ClassBasis, CodedClip, code_clip, encode_class, interim_coder, reconstruct
 from .skeleton import ChannelLayout, SkeletonModel
 from .progress import progress
 from .representations.base import Encoded
@@ -42,6 +43,7 @@ from .segment import OVERLAP, coded_range, join_segments, segment_take
 
 DEFAULT_ERROR_CM = 1.0
 TIGHTENINGS = 8  # times a segmented take's segments are coded again, 10 % tighter, if the joined take misses
+DEFAULT_CACHE_MB = 512  # clips kept in memory between compress's passes (clip.ClipReader)
 
 
 @dataclass
@@ -66,11 +68,18 @@ class Settings:
 
 
 def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
-             skip_bad: bool = False) -> dict:
+             skip_bad: bool = False, cache_bytes: int | None = DEFAULT_CACHE_MB << 20) -> dict:
     """Compress every clip under `inputs` into `output`; return the summary (also stored in meta).
 
     With `skip_bad`, clips that cannot be read are left out and listed in the summary's
     `skipped` (and the archive's meta) instead of stopping the run.
+
+    Clips stream through, so a database larger than memory compresses (docs/architecture.md):
+    a first pass reads each clip to check it, note its row and code it (lossless) or add its
+    poses to its class's covariance; then each class is coded, its clips read again unless
+    they were kept in memory, which they are while they fit in `cache_bytes` (None: no limit).
+    `--classes auto` and `--segment` analyse the poses of all clips together: they keep every
+    clip in memory.
     """
     if not force and os.path.lexists(output):
         raise FileExistsError(None, "already exists", os.fspath(output))
@@ -79,74 +88,52 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     sources = find_clips(inputs, asf=asf, skipped=skipped)
     if not sources and not skipped:
         raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, inputs)))
-    representation = None if settings.lossless else settings.representation
-    clips = load_clips(sources, sorted({s.asf for s in sources}), representation, settings.axis_weight_cm, skipped)
-    if not clips:
-        raise MocapFormatError(f"nothing to compress: all {len(skipped)} clips were skipped",
-                               ", ".join(map(os.fspath, inputs)))
-    sources = [c.source for c in clips]
-    skeleton_paths = sorted({s.asf for s in sources})  # only the skeletons of the clips kept
-    for clip in clips:
-        clip.skeleton_index = skeleton_paths.index(clip.source.asf)
-    skeleton_texts = [p.read_bytes().decode("latin-1") for p in skeleton_paths]
-    units = _units(clips, settings.segment and not settings.lossless)
-    auto_report: dict = {}
-    unit_class = _unit_classes(sources, units, settings, jobs, auto_report)
-    class_names = sorted(set(unit_class))
-    parts_of = defaultdict(list)  # clip index -> its units' indices
-    for u, unit in enumerate(units):
-        parts_of[unit.clip].append(u)
+    keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
+    reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
+                        None if keeps_all else cache_bytes)
+    with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
+        scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all)
+        if not scan.sources:
+            raise MocapFormatError(f"nothing to compress: all {len(skipped)} clips were skipped",
+                                   ", ".join(map(os.fspath, inputs)))
+        sources, rows = scan.sources, scan.rows
+        skeleton_paths = sorted({s.asf for s in sources})  # only the skeletons of the clips kept
+        for source, row in zip(sources, rows):
+            row["skeleton"] = skeleton_paths.index(source.asf)
+        units = _units(scan, reader, settings.segment and not settings.lossless)
+        auto_report: dict = {}
+        unit_class = _unit_classes(scan, units, reader, settings, jobs, auto_report)
+        class_names = sorted(set(unit_class))
+        for unit, name in zip(units, unit_class):
+            if unit.first == 0:  # a take's class is its first segment's
+                rows[unit.clip]["class"] = class_names.index(name)
+        classes_meta = []
+        if not settings.lossless:
+            classes_meta, interim = _code_classes(scan, units, unit_class, class_names, reader, settings, writer, jobs)
+            coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder)
+            for name, stream in clip_streams.items():
+                writer.add(name, stream)
+            settings = replace(settings, coefficient_coder=coder)
 
-    streams: dict[str, bytes] = {}
-    coded_streams: dict[str, CodedClip] = {}  # lossy clip streams, serialised once the priors are known
-    rows = [_clip_row(c, class_names.index(unit_class[parts_of[i][0]])) for i, c in enumerate(clips)]
-    classes_meta = []
-    if settings.lossless:
-        for i, clip in enumerate(progress(clips, desc="lossless", unit="clip")):
-            streams[f"clip/{i:05d}"] = encode_channels(clip.motion.values)
-            rows[i].update(error_cm=0.0, max_error_cm=0.0)
-    else:
-        transform = get_stage(settings.transform)
-        coded_units: list = [None] * len(units)  # (class index, basis, CodedClip, (mean, max error))
-        for k, name in enumerate(progress(class_names, desc="classes", unit="class")):
-            members = [u for u, c in enumerate(unit_class) if c == name]
-            basis, coded, errors = encode_class([units[u].clip_data for u in members], transform, settings, jobs)
-            streams[f"class/{k:04d}"] = basis.encode(settings.coefficient_coder)
-            classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
-                                 "frames": sum(units[u].clip_data.motion.n_frames for u in members)})
-            for u, code, error in zip(members, coded, errors):
-                coded_units[u] = (k, basis, code, error)
-        for i, clip in enumerate(clips):
-            parts = parts_of[i]
-            if len(parts) == 1:
-                _, _, code, (mean_err, max_err) = coded_units[parts[0]]
-                coded_streams[f"clip/{i:05d}"] = code
-                rows[i].update(error_cm=mean_err, max_error_cm=max_err)
-            else:
-                coded_streams.update(_segmented_take(rows[i], i, clip, [units[u] for u in parts],
-                                                     [coded_units[u] for u in parts], transform, settings))
-        coder, clip_streams = _serialise_clips(coded_streams, settings.coefficient_coder)
-        streams.update(clip_streams)
-        settings = replace(settings, coefficient_coder=coder)
-
-    stored_settings = asdict(settings)
-    if not settings.segment:
-        del stored_settings["segment"]  # absent means off: archives without segments are written as before
-    meta = {
-        "tool": f"mocapzip {__version__}",
-        "settings": stored_settings,
-        "skeletons": [{"name": p.name} for p in skeleton_paths],
-        "classes": classes_meta if not settings.lossless else [],
-        "clips": rows,
-    }
-    if auto_report:
-        meta["auto_classes"] = auto_report["groups"]
-    if skipped:
-        meta["skipped"] = skipped
-    ordered = {"meta": encode_bytes(json.dumps(meta, sort_keys=True).encode()),
-               "skeletons": encode_bytes(json.dumps(skeleton_texts).encode())}
-    ordered.update(sorted(streams.items()))
-    size = write_archive(output, ordered, tool_version=__version__, overwrite=force)
+        stored_settings = asdict(settings)
+        if not settings.segment:
+            del stored_settings["segment"]  # absent means off: archives without segments are written as before
+        meta = {
+            "tool": f"mocapzip {__version__}",
+            "settings": stored_settings,
+            "skeletons": [{"name": p.name} for p in skeleton_paths],
+            "classes": classes_meta,
+            "clips": rows,
+        }
+        if auto_report:
+            meta["auto_classes"] = auto_report["groups"]
+        if skipped:
+            meta["skipped"] = skipped
+        order = ["meta", "skeletons", *sorted(writer.names)]
+        writer.add("meta", encode_bytes(json.dumps(meta, sort_keys=True).encode()))
+        writer.add("skeletons", encode_bytes(json.dumps([p.read_bytes().decode("latin-1")
+                                                         for p in skeleton_paths]).encode()))
+        size = writer.commit(order)
     frames = sum(r["frames"] for r in rows)
     return {
         "output": os.fspath(output),
@@ -162,26 +149,80 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
 
 
 @dataclass
+class _FirstPass:
+    """What one read of every clip learns before any class is coded."""
+
+    sources: list[ClipSource] = field(default_factory=list)  # the clips kept, in archive order
+    rows: list[dict] = field(default_factory=list)  # their rows in meta; class and errors come later
+    classes: list[str] = field(default_factory=list)  # each clip's class, if paths decide it (not -c auto)
+    poses: dict[str, CovarianceAccumulator] = field(default_factory=dict)  # weighted poses by class (lossy)
+
+
+def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Settings, writer: ArchiveWriter,
+                skipped: list | None, accumulate: bool) -> _FirstPass:
+    """Read every clip once: check it, note its row and class, and code it (lossless) or, with
+    `accumulate`, add its poses to its class's covariance; then offer it to `reader` to keep.
+
+    A clip that cannot be read raises MocapFormatError or OSError; with a `skipped` list it
+    is left out and recorded there instead (`inputs.record_skip`).
+    """
+    if parse_auto(settings.classes) is False:
+        name_class = class_namer(settings.classes)
+    else:  # lossless clips share no basis: there is nothing to group
+        name_class = (lambda source: "all") if settings.lossless else None
+    scan = _FirstPass()
+    for source in progress(sources, desc="read", unit="clip"):
+        try:
+            clip = reader.read(source)
+        except (MocapFormatError, OSError) as exc:
+            if skipped is None:
+                raise
+            record_skip(skipped, source, exc)
+            continue
+        scan.rows.append(_clip_row(clip))
+        if name_class is not None:
+            scan.classes.append(name_class(source))
+        if settings.lossless:
+            writer.add(f"clip/{len(scan.sources):05d}", encode_channels(clip.motion.values))
+            scan.rows[-1].update(error_cm=0.0, max_error_cm=0.0)
+        else:
+            if accumulate:
+                dim = clip.poses.shape[1]
+                scan.poses.setdefault(scan.classes[-1], CovarianceAccumulator(dim)).add(clip.poses)
+            reader.keep(clip)
+        scan.sources.append(source)
+    return scan
+
+
+@dataclass
 class _Unit:
     """What the codec codes on its own: a whole clip, or (--segment) one segment of a take."""
 
     clip: int  # index of the take in the archive's clips
+    source: ClipSource  # the take's files
     first: int  # the segment's first frame in the take (0 for a whole clip)
     frames: int  # the segment's frame count, up to the next cut
-    clip_data: LoadedClip  # the frames coded: the segment and OVERLAP frames past its cuts (segment.coded_range)
+    coded: tuple[int, int] | None = None  # a segment's frames coded: it and OVERLAP frames past its cuts
+
+    def load(self, reader: ClipReader) -> LoadedClip:
+        clip = reader.load(self.source)
+        return clip if self.coded is None else _frames_of(clip, *self.coded)
+
+    @property
+    def coded_frames(self) -> int:
+        return self.frames if self.coded is None else self.coded[1] - self.coded[0]
 
 
-def _units(clips: list[LoadedClip], segment: bool) -> list[_Unit]:
+def _units(scan: _FirstPass, reader: ClipReader, segment: bool) -> list[_Unit]:
     """Every clip as one unit, or with `segment` cut at its PPCA change points (`segment.segment_take`)."""
     units = []
-    for i, clip in enumerate(progress(clips, desc="segment", unit="clip") if segment else clips):
-        n = clip.motion.n_frames
-        cuts = segment_take(clip.poses) if segment else [0, n]
+    for i, source in enumerate(progress(scan.sources, desc="segment", unit="clip") if segment else scan.sources):
+        n = scan.rows[i]["frames"]
+        cuts = segment_take(reader.load(source).poses) if segment else [0, n]
         if len(cuts) == 2:
-            units.append(_Unit(i, 0, n, clip))
+            units.append(_Unit(i, source, 0, n))
         else:
-            units.extend(_Unit(i, a, b - a, _frames_of(clip, *coded_range(a, b - a, n)))
-                         for a, b in zip(cuts[:-1], cuts[1:]))
+            units.extend(_Unit(i, source, a, b - a, coded_range(a, b - a, n)) for a, b in zip(cuts[:-1], cuts[1:]))
     return units
 
 
@@ -193,64 +234,106 @@ def _frames_of(clip: LoadedClip, a: int, b: int) -> LoadedClip:
     return replace(clip, motion=motion, encoded=encoded, positions=clip.positions[a:b])
 
 
-def _unit_classes(sources, units: list[_Unit], settings: Settings, jobs: int, report: dict) -> list[str]:
-    """The class name of each unit: by path or table (`classes.assign_classes`; a take's segments
+def _unit_classes(scan: _FirstPass, units: list[_Unit], reader: ClipReader, settings: Settings, jobs: int,
+                  report: dict) -> list[str]:
+    """The class name of each unit: by path or table, as the first pass named it (a take's segments
     share its class), or `auto[:K]` from the poses (`autoclass.auto_classes`, its plan in `report`)."""
-    k = parse_auto(settings.classes)
-    if k is False:
-        class_of = assign_classes(sources, settings.classes)
-        return [class_of[unit.clip_data.source.relpath] for unit in units]
-    if settings.lossless:
-        return ["all"] * len(units)  # lossless clips share no basis: there is nothing to group
-    return auto_classes([unit.clip_data for unit in units], k, settings, jobs=jobs, report=report)
+    if scan.classes:
+        return [scan.classes[unit.clip] for unit in units]
+    clips = [unit.load(reader) for unit in units]
+    return auto_classes(clips, parse_auto(settings.classes), settings, jobs=jobs, report=report)
 
 
-def _serialise_clips(coded: dict[str, CodedClip], coder: str) -> tuple[str, dict[str, bytes]]:
-    """The clip streams, and the coder they use. For "primed" the archive's priors are trained
-    on every clip (in stream order) and stored as the "priors" stream. "auto" takes "primed"
-    when that is smaller, counting the priors (about 400 bytes: they pay from roughly 10,000
-    frames on), else "context"."""
-    names = sorted(coded)
+def _serialise_clips(interim: dict[str, bytes], coder: str) -> tuple[str, dict[str, bytes]]:
+    """The clip streams as stored, and the coder they use, from the streams as `encode_class`
+    holds them (`lossy.interim_coder`). For "primed" the archive's priors are trained on every
+    clip (in stream order), the clips coded again from them, and the priors stored as the
+    "priors" stream. "auto" takes "primed" when that is smaller, counting the priors (about
+    400 bytes: they pay from roughly 10,000 frames on), else "context"."""
     if coder in ("context", "zstd"):
-        return coder, {name: coded[name].payload(coder) for name in names}
-    priors = Priors.train([coded[name].matrices for name in names])
-    primed = {name: coded[name].payload("primed", priors) for name in names}
+        return coder, interim
+    names = sorted(interim)
+
+    def decoded(name: str) -> CodedClip:  # one at a time: the coefficients of all clips may be large
+        return CodedClip.from_payload(interim[name], interim_coder(coder))
+
+    priors = Priors.train(decoded(name).matrices for name in progress(names, desc="priors", unit="clip"))
+    primed = {name: decoded(name).payload("primed", priors) for name in names}
     primed["priors"] = encode_bytes(priors.encode())
-    if coder == "primed":
-        return coder, primed
-    plain = {name: coded[name].payload("context") for name in names}
-    if sum(map(len, primed.values())) < sum(map(len, plain.values())):
+    if coder == "primed" or sum(map(len, primed.values())) < sum(map(len, interim.values())):
         return "primed", primed
-    return "context", plain
+    return "context", interim
 
 
-def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit], coded: list, transform,
-                    settings: Settings) -> dict[str, CodedClip]:
-    """Coded streams of a take cut into segments; fills its row's `segments`, `segment_overlap`, `class`
+def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], class_names: list[str],
+                  reader: ClipReader, settings: Settings, writer: ArchiveWriter,
+                  jobs: int) -> tuple[list[dict], dict[str, bytes]]:
+    """Code every class (lossy): add its basis to `writer`, fill in the clips' rows; return the
+    classes' rows in meta and the clip streams as held until `_serialise_clips` (small: coded).
+    A class's clips are forgotten by `reader` once coded; a segmented take's are kept until its
+    segments are joined (`_segmented_take`)."""
+    transform = get_stage(settings.transform)
+    classes_meta, interim = [], {}
+    segments = {}  # unit index -> (class index, basis, payload, error) of a take's segments
+    for k, name in enumerate(progress(class_names, desc="classes", unit="class")):
+        members = [u for u, c in enumerate(unit_class) if c == name]
+        clips = ClipsOnDemand([units[u] for u in members], lambda unit: unit.load(reader))
+        basis, payloads, errors = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
+        writer.add(f"class/{k:04d}", basis.encode(settings.coefficient_coder))
+        classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
+                             "frames": sum(units[u].coded_frames for u in members)})
+        for u, payload, (mean_err, max_err) in zip(members, payloads, errors):
+            unit = units[u]
+            if unit.coded is None:
+                interim[f"clip/{unit.clip:05d}"] = payload
+                scan.rows[unit.clip].update(error_cm=mean_err, max_error_cm=max_err)
+                reader.forget([unit.source])
+            else:
+                segments[u] = (k, basis, payload, (mean_err, max_err))
+    parts_of = defaultdict(list)  # clip index -> its segments' unit indices
+    for u in segments:
+        parts_of[units[u].clip].append(u)
+    for i, parts in sorted(parts_of.items()):
+        take = [units[u] for u in parts]
+        for name, payload in _segmented_take(scan.rows[i], i, reader.load(scan.sources[i]), take,
+                                             [unit.load(reader) for unit in take], [segments[u] for u in parts],
+                                             transform, settings).items():
+            interim[name] = payload
+        reader.forget([scan.sources[i]])
+    return classes_meta, interim
+
+
+def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit], unit_clips: list[LoadedClip],
+                    coded: list, transform, settings: Settings) -> dict[str, bytes]:
+    """Streams of a take cut into segments; fills its row's `segments`, `segment_overlap`, `class`
     (the first segment's) and its achieved error, measured on the take joined as `Archive.decode` does.
 
-    Every segment met the target on its coded frames, and the crossfade only mixes frames both
+    `coded`: each segment's (class index, basis, payload, error) from `encode_class`. Every
+    segment met the target on its coded frames, and the crossfade only mixes frames both
     decode well, so the take nearly always meets it at once; if not, its segments are coded
     again against a tighter target until it does.
     """
-    target, dz = settings.error_cm, settings.dead_zone
+    target, dz, coder = settings.error_cm, settings.dead_zone, interim_coder(settings.coefficient_coder)
     cores = [(unit.first, unit.frames) for unit in units]
-    codes, errors = [c[2] for c in coded], [c[3] for c in coded]
+    payloads, errors = [c[2] for c in coded], [c[3] for c in coded]
     for _ in range(TIGHTENINGS):
-        decoded = [reconstruct(code, c[1], transform, dz, unit.clip_data.motion.n_frames)
-                   for code, c, unit in zip(codes, coded, units)]
+        decoded = [reconstruct(CodedClip.from_payload(payload, coder, [(unit.coded_frames, c[1].q),
+                                                                       (unit.coded_frames, 4)]),
+                               c[1], transform, dz, unit.coded_frames)
+                   for payload, c, unit in zip(payloads, coded, units)]
         mean_err, max_err = clip.error(*_joined(decoded, cores, clip.motion.n_frames, OVERLAP), final=True)
         if mean_err <= target:
             break
         target *= 0.9
-        codes, errors = zip(*(code_clip(unit.clip_data, c[1], transform, target, dz, settings.split)
-                              for unit, c in zip(units, coded)))
+        codes, errors = zip(*(code_clip(unit_clip, c[1], transform, target, dz, settings.split)
+                              for unit_clip, c in zip(unit_clips, coded)))
+        payloads = [code.payload(coder) for code in codes]
     else:
         raise RuntimeError(f"{row['path']}: segments joined to {mean_err:.4f} cm, above {settings.error_cm} cm")
     streams, segments = {}, []
-    for s, (unit, c, code, (seg_mean, seg_max)) in enumerate(zip(units, coded, codes, errors)):
+    for s, (unit, c, payload, (seg_mean, seg_max)) in enumerate(zip(units, coded, payloads, errors)):
         name = f"clip/{index:05d}/{s:03d}"
-        streams[name] = code
+        streams[name] = payload
         segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
                          "error_cm": seg_mean, "max_error_cm": seg_max})
     row.update(segments=segments, segment_overlap=OVERLAP, error_cm=mean_err, max_error_cm=max_err)
@@ -265,12 +348,11 @@ def _joined(decoded: list, cores: list[tuple[int, int]], n_frames: int, overlap:
     return poses, root
 
 
-def _clip_row(clip: LoadedClip, class_index: int) -> dict:
+def _clip_row(clip: LoadedClip) -> dict:
+    """A clip's row in meta as far as the clip itself tells (its skeleton, class and errors come later)."""
     m = clip.motion
     return {
         "path": clip.source.relpath,
-        "skeleton": clip.skeleton_index,
-        "class": class_index,
         "frames": m.n_frames,
         "first_frame": int(m.frame_numbers[0]) if m.n_frames else 1,
         "header": m.header,

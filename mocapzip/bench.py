@@ -514,7 +514,7 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            loaded = load_clips([clip.source], [clip.source.asf], task["representation"])[0]
+            loaded = load_clips([clip.source], task["representation"])[0]
         basis = ClassBasis(np.zeros(loaded.poses.shape[1]), np.eye(loaded.poses.shape[1]), np.ones(loaded.poses.shape[1]))
         coded, _ = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
         payload = coded.payload()

@@ -8,27 +8,36 @@ annealing) need the loaded poses: they live in `mocapzip.autoclass`, dispatched 
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 
 from .formats.errors import MocapFormatError
 from .inputs import ClipSource
 
 
-def assign_classes(clips: list[ClipSource], mode: str) -> dict[str, str]:
-    """Map each clip's stored path to a class name.
+def class_namer(mode: str) -> Callable[[ClipSource], str]:
+    """The function naming a clip's class, decided by its path or table row alone.
 
-    Takes the clips' sources only: every mode here is decided by paths and tables.
-    Modes that look at the motion itself (automatic classes) take the loaded clips
-    and are dispatched before this, in `archive.compress`.
+    One clip at a time, so `compress` can name each clip as it streams past. Modes that
+    look at the motion itself (automatic classes) take the loaded clips and are
+    dispatched before this, in `archive.compress`.
     """
     if mode == "single":
-        return {c.relpath: "all" for c in clips}
+        return lambda clip: "all"
     if mode == "subject":
         # Clips sharing a skeleton file are one subject (CMU: one ASF per subject folder).
-        return {c.relpath: _subject_name(c) for c in clips}
+        return _subject_name
     path = Path(mode)
     if path.suffix.lower() in (".csv", ".tsv") or path.is_file():
-        return _classes_from_table(clips, path)
+        table = read_class_table(path)
+
+        def from_table(clip: ClipSource) -> str:
+            name = class_in_table(clip, table)
+            if name is None:
+                raise MocapFormatError(f"clip '{clip.relpath}' has no class in the table", path)
+            return name
+
+        return from_table
     raise MocapFormatError(f"unknown --classes value {mode!r}: use single, subject, auto[:K] or a CSV file")
 
 
@@ -37,17 +46,6 @@ def _subject_name(clip: ClipSource) -> str:
         return clip.asf.stem
     parent = PurePosixPath(clip.relpath).parent
     return str(parent) if str(parent) != "." else "all"
-
-
-def _classes_from_table(clips: list[ClipSource], path: Path) -> dict[str, str]:
-    table = read_class_table(path)
-    assigned = {}
-    for clip in clips:
-        name = class_in_table(clip, table)
-        if name is None:
-            raise MocapFormatError(f"clip '{clip.relpath}' has no class in the table", path)
-        assigned[clip.relpath] = name
-    return assigned
 
 
 def read_class_table(path) -> dict[str, str]:

@@ -8,6 +8,7 @@ kinematics, against the original clip's joint positions.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -15,8 +16,7 @@ import numpy as np
 
 from .formats.amc import AmcStyle, Motion, read_amc
 from .formats.asf import read_asf
-from .formats.errors import MocapFormatError
-from .inputs import ClipSource, record_skip
+from .inputs import ClipSource
 from .kinematics import forward
 from .metrics import joint_distances
 from .progress import progress
@@ -28,7 +28,6 @@ from .skeleton import ChannelLayout, SkeletonModel
 @dataclass
 class LoadedClip:
     source: ClipSource
-    skeleton_index: int
     model: SkeletonModel
     motion: Motion
     encoded: Encoded | None  # None in lossless mode: the channels are coded as they are
@@ -48,6 +47,14 @@ class LoadedClip:
     @property
     def root(self) -> np.ndarray | None:
         return self.encoded.root
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the clip's arrays, its weighted poses counted whether computed yet or not."""
+        arrays = [self.motion.values, self.positions]
+        if self.encoded is not None:
+            arrays += [self.encoded.poses, self.encoded.poses, self.encoded.root]
+        return sum(a.nbytes for a in arrays if a is not None)
 
     @property
     def layout(self) -> ChannelLayout:
@@ -107,31 +114,78 @@ def skeleton_params(model: SkeletonModel, representation_name: str, layout: Chan
     return get_representation(representation_name).forward(model, rest).params
 
 
-def load_clips(sources: list[ClipSource], skeleton_paths: list, representation_name: str | None,
-               axis_weight_cm: float = 1.0, skipped: list | None = None) -> list[LoadedClip]:
+def load_clips(sources: list[ClipSource], representation_name: str | None,
+               axis_weight_cm: float = 1.0) -> list[LoadedClip]:
     """Read every clip (checking it against its skeleton) and convert it to the representation.
 
-    A clip that cannot be read raises MocapFormatError or OSError; with a `skipped` list it
-    is left out and recorded there instead (`inputs.record_skip`).
+    A clip that cannot be read raises MocapFormatError or OSError.
     """
-    skeletons: dict = {}
-    clips = []
-    for source in progress(sources, desc="read", unit="clip"):
-        try:
-            if source.asf not in skeletons:
-                skeleton = read_asf(source.asf)
-                skeletons[source.asf] = (skeleton, SkeletonModel.from_asf(skeleton))
-            skeleton, model = skeletons[source.asf]
-            motion = read_amc(source.amc, skeleton)  # checks every bone line against the skeleton
-        except (MocapFormatError, OSError) as exc:
-            if skipped is None:
-                raise
-            record_skip(skipped, source, exc)
-            continue
+    reader = ClipReader(representation_name, axis_weight_cm)
+    return [reader.read(source) for source in progress(sources, desc="read", unit="clip")]
+
+
+class ClipReader:
+    """Reads clips for a codec that visits each several times, keeping those that fit a byte budget.
+
+    A database larger than memory cannot be held at once, and parsing AMC text again costs
+    time, so clips handed to `keep` stay in memory while their arrays fit in `budget_bytes`
+    (None: no limit) and `load` re-reads only the others. A kept clip leaves when the codec
+    is done with it (`forget`). There is no eviction: the codec scans a class's clips
+    several times in the same order, and least-recently-used eviction would drop each clip
+    just before its next use. Forked workers see the clips kept before the fork.
+    """
+
+    def __init__(self, representation_name: str | None, axis_weight_cm: float = 1.0,
+                 budget_bytes: int | None = None):
+        self.representation_name, self.axis_weight_cm = representation_name, axis_weight_cm
+        self.budget_bytes = budget_bytes
+        self._skeletons: dict = {}  # ASF path -> (skeleton, model): small, read once
+        self._kept: dict[ClipSource, LoadedClip] = {}
+        self._kept_bytes = 0
+
+    def read(self, source: ClipSource) -> LoadedClip:
+        """Parse the clip (checking every bone line against its skeleton) and convert it; raises
+        MocapFormatError or OSError if it cannot be read."""
+        if source.asf not in self._skeletons:
+            skeleton = read_asf(source.asf)
+            self._skeletons[source.asf] = (skeleton, SkeletonModel.from_asf(skeleton))
+        skeleton, model = self._skeletons[source.asf]
+        motion = read_amc(source.amc, skeleton)
         encoded = positions = None
-        if representation_name is not None:
-            encoded = get_representation(representation_name).forward(model, motion)
+        if self.representation_name is not None:
+            encoded = get_representation(self.representation_name).forward(model, motion)
             positions = forward(model, motion.values, motion).positions
-        clips.append(LoadedClip(source, skeleton_paths.index(source.asf), model, motion, encoded,
-                                representation_name, positions, axis_weight_cm))
-    return clips
+        return LoadedClip(source, model, motion, encoded, self.representation_name, positions,
+                          self.axis_weight_cm)
+
+    def load(self, source: ClipSource) -> LoadedClip:
+        """The kept clip, or the clip read again."""
+        clip = self._kept.get(source)
+        return clip if clip is not None else self.read(source)
+
+    def keep(self, clip: LoadedClip) -> None:
+        """Hold `clip` for later `load`s if it fits in the budget."""
+        if self.budget_bytes is None or self._kept_bytes + clip.nbytes <= self.budget_bytes:
+            self._kept[clip.source] = clip
+            self._kept_bytes += clip.nbytes
+
+    def forget(self, sources) -> None:
+        """Free the kept clips among `sources` (the codec is done with them)."""
+        for source in sources:
+            clip = self._kept.pop(source, None)
+            if clip is not None:
+                self._kept_bytes -= clip.nbytes
+
+
+class ClipsOnDemand(Sequence):
+    """A list of clips the codec can index, also in forked workers, whose clips are loaded
+    (`load(item)`, e.g. through a `ClipReader`) when indexed instead of held all at once."""
+
+    def __init__(self, items: list, load: Callable[[object], LoadedClip]):
+        self.items, self.load = items, load
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, index: int) -> LoadedClip:
+        return self.load(self.items[index])

@@ -212,6 +212,12 @@ class CodedClip:
         return cls(pose_step, arrays[0], root_step, arrays[1] if len(arrays) > 1 else None)
 
 
+def interim_coder(coder: str) -> str:
+    """How clip streams are held until all are coded: as written, except that "primed" and
+    "auto" streams are held as "context" ones (priors are trained on every clip first)."""
+    return "zstd" if coder == "zstd" else "context"
+
+
 def _priors_for(coder: str, priors: Priors | None) -> Priors | None:
     if coder == "primed" and priors is None:
         raise ValueError("coefficient coder 'primed' needs the archive's priors")
@@ -229,42 +235,59 @@ BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet
 _SHARED: dict = {}  # what forked workers read (clips are large: they are inherited, not pickled)
 
 
-def encode_class(clips, transform, settings, jobs: int = 1):
-    """Fit the class basis and code each clip within settings.error_cm; return (basis, coded, errors).
+def encode_class(clips, transform, settings, jobs: int = 1, accumulator: CovarianceAccumulator | None = None):
+    """Fit the class basis and code each clip within settings.error_cm; return (basis, payloads, errors):
+    each clip's stream (`CodedClip.payload`) and achieved (mean, max) error.
 
     The budget split is a search: for each candidate PCA share, the class keeps the fewest
     components that bring every clip's PCA-only error under that share, then each clip gets
     the largest quantiser step that keeps its end-to-end error under the whole budget. The
     split with the fewest bytes wins. `settings.split` forces one split instead.
+
+    `clips` may load each clip when indexed (`clip.ClipsOnDemand`): a class need not fit in
+    memory. Each clip is indexed once for the component search and once to be coded with every
+    candidate basis (again only if a basis must be stored finer); `accumulator`, the class's
+    weighted poses when the caller has already summed them, saves one more pass.
     """
-    accumulator = CovarianceAccumulator(clips[0].poses.shape[1])
-    for clip in clips:
-        accumulator.add(clip.poses)
+    if accumulator is None:
+        accumulator = CovarianceAccumulator(clips[0].poses.shape[1])
+        for clip in clips:
+            accumulator.add(clip.poses)
     pca = PcaBasis.fit(accumulator)
     target = settings.error_cm
     shares = [settings.split[1] / sum(settings.split)] if settings.split else PCA_SHARES
     _SHARED.update(clips=clips, pca=pca, transform=transform, settings=settings)
     try:
         needed = np.array(_parallel(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
-        best = None
-        for k, share in enumerate(shares):
-            q = needed[:, k].max()
-            precision = settings.basis_precision
-            for _ in range(BASIS_REFINEMENTS):
-                steps = ClassBasis.steps_for(pca.variances[:q], settings.error_cm, precision)
-                basis = _SHARED["basis"] = ClassBasis.quantised(pca.mean, pca.components[:, :q], steps)
-                coded, errors = zip(*_parallel(_code_clip, range(len(clips)), jobs))
-                if max(e[0] for e in errors) <= target:
-                    break
-                precision /= 4  # the rounded basis alone costs too much error: store it finer
-            else:
-                raise RuntimeError(f"no clip coding met {target} cm; worst {max(e[0] for e in errors):.3f} cm")
-            coder = "zstd" if settings.coefficient_coder == "zstd" else "context"  # priors come later
-            size = len(basis.encode(coder)) + sum(len(c.payload(coder)) for c in coded)
-            if best is None or size < best[0]:
-                best = (size, basis, list(coded), list(errors))
+        # Shares that need the same component count get the same basis and coding: code it once.
+        counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
+        precision = dict.fromkeys(counts, settings.basis_precision)
+        codings = {}  # component count -> (basis, payloads, errors)
+        pending = counts
+        for _ in range(BASIS_REFINEMENTS):
+            steps = [ClassBasis.steps_for(pca.variances[:q], target, precision[q]) for q in pending]
+            bases = _SHARED["bases"] = [ClassBasis.quantised(pca.mean, pca.components[:, :q], step)
+                                        for q, step in zip(pending, steps)]
+            per_clip = _parallel(_code_clip, range(len(clips)), jobs)  # per clip, (payload, error) per basis
+            for b, (q, basis) in enumerate(zip(pending, bases)):
+                payloads, errors = zip(*(codings_of_clip[b] for codings_of_clip in per_clip))
+                codings[q] = (basis, list(payloads), list(errors))
+            pending = [q for q in pending if max(e[0] for e in codings[q][2]) > target]
+            if not pending:
+                break
+            for q in pending:
+                precision[q] /= 4  # the rounded basis alone costs too much error: store it finer
+        else:
+            worst = max(e[0] for q in pending for e in codings[q][2])
+            raise RuntimeError(f"no clip coding met {target} cm; worst {worst:.3f} cm")
     finally:
         _SHARED.clear()
+    best = None
+    for q in counts:  # in share order: on equal sizes the first share wins
+        basis, payloads, errors = codings[q]
+        size = len(basis.encode(settings.coefficient_coder)) + sum(map(len, payloads))
+        if best is None or size < best[0]:
+            best = (size, basis, payloads, errors)
     return best[1], best[2], best[3]
 
 
@@ -295,10 +318,15 @@ def _components_for_shares(index: int) -> list[int]:
     return [smallest_count(error, share * settings.error_cm, 0, pca.components.shape[1]) for share in shares]
 
 
-def _code_clip(index: int):
-    settings = _SHARED["settings"]
-    return code_clip(_SHARED["clips"][index], _SHARED["basis"], _SHARED["transform"], settings.error_cm,
-                     settings.dead_zone, settings.split)
+def _code_clip(index: int) -> list[tuple[bytes, tuple[float, float]]]:
+    """The clip coded with each candidate basis, as (payload, (mean, max) error): one load for all."""
+    settings, clip = _SHARED["settings"], _SHARED["clips"][index]
+    out = []
+    for basis in _SHARED["bases"]:
+        coded, error = code_clip(clip, basis, _SHARED["transform"], settings.error_cm, settings.dead_zone,
+                                 settings.split)
+        out.append((coded.payload(interim_coder(settings.coefficient_coder)), error))
+    return out
 
 
 def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None):

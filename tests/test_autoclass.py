@@ -127,11 +127,10 @@ def short_clips(shared_data):
     paths = [cmu / "07" / f"07_{i:02d}.amc" for i in (1, 9, 10)] + [cmu / "09" / f"09_{i:02d}.amc" for i in (1, 2, 3)]
     settings = Settings()
     sources = find_clips(paths)
-    skeletons = sorted({s.asf for s in sources})
     try:
-        clips = load_clips(sources, skeletons, settings.representation, settings.axis_weight_cm)
+        clips = load_clips(sources, settings.representation, settings.axis_weight_cm)
     except AttributeError:  # a codec without pose weights
-        clips = load_clips(sources, skeletons, settings.representation)
+        clips = load_clips(sources, settings.representation)
     return clips, settings, ByteProxy.calibrate(clips, settings, jobs=2), paths
 
 
@@ -262,7 +261,7 @@ def test_ppca_segmentation_cuts_where_the_behaviour_changes(shared_data):
 
     cmu = shared_data / "cmu" / "35"
     sources = find_clips([cmu / "35_17.amc", cmu / "35_18.amc", cmu / "35_01.amc"])
-    clips = {c.source.relpath: c.poses for c in load_clips(sources, [sources[0].asf], "normalised")}
+    clips = {c.source.relpath: c.poses for c in load_clips(sources, "normalised")}
     runs = np.vstack([clips["35_17.amc"], clips["35_18.amc"]])
     cuts = segment_take(np.vstack([runs, clips["35_01.amc"]]), min_frames=120, horizon=60)
     assert len(cuts) == 3 and abs(cuts[1] - len(runs)) <= 40, cuts

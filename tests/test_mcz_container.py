@@ -142,6 +142,36 @@ def test_deterministic(tmp_path):
     assert (tmp_path / "1.mcz").read_bytes() == (tmp_path / "2.mcz").read_bytes()
 
 
+
+def test_streams_added_one_by_one_write_the_same_archive(tmp_path):
+    """ArchiveWriter: streams come in any order, wait outside memory and the archive names no trace of
+    them; the file is byte for byte write_archive's for the same streams in the same order."""
+    big = random.Random(1).randbytes(3 << 20)
+    streams = {"meta": b"known last", "b": big, "a": b"", "c": bytes(range(256))}
+    write_archive(tmp_path / "whole.mcz", streams, tool_version="1")
+    out = tmp_path / "out"
+    out.mkdir()
+    with mcz.ArchiveWriter(out / "streamed.mcz", tool_version="1") as writer:
+        for name in ("c", "b", "a"):
+            writer.add(name, streams[name])
+        with pytest.raises(ValueError, match="added twice"):
+            writer.add("a", b"again")
+        writer.add("meta", streams["meta"])
+        assert os.listdir(out) == []  # the spool has no name
+        with pytest.raises(ValueError, match="every added stream"):
+            writer.commit(["meta", "b", "a"])
+        size = writer.commit(list(streams))
+    assert os.listdir(out) == ["streamed.mcz"] and size == os.path.getsize(out / "streamed.mcz")
+    assert (out / "streamed.mcz").read_bytes() == (tmp_path / "whole.mcz").read_bytes()
+
+
+def test_writer_refuses_an_existing_file_before_any_stream(tmp_path):
+    path = tmp_path / "x.mcz"
+    path.write_bytes(b"precious")
+    with pytest.raises(FileExistsError, match="overwrite=True"):
+        mcz.ArchiveWriter(path, tool_version="1")
+    assert os.listdir(tmp_path) == ["x.mcz"]
+
 def test_newer_format_version_refused(tmp_path):
     path = tmp_path / "future.mcz"
     write_archive(path, {"s": b"x"}, tool_version="9.9")

@@ -113,7 +113,7 @@ def walk_run(shared_data):
     out = {}
     for part, paths in files.items():
         sources = find_clips(paths)
-        clips = load_clips(sources, sorted({s.asf for s in sources}), "normalised")
+        clips = load_clips(sources, "normalised")
         out[part] = {c.source.relpath: classification_poses(c) for c in clips}
     labels = read_class_table(shared_data / "MANIFEST.tsv")
     truth = {name: labels[f"cmu/{name[:2]}/{name}"] for part in out.values() for name in part}

@@ -100,11 +100,12 @@ class Priors:
     @classmethod
     def train(cls, streams) -> "Priors":
         """`streams`: lists of matrices as `encode_matrices` takes them (slot i trains models i)."""
-        slots = max((len(matrices) for matrices in streams), default=0)
-        models = [_Models() for _ in range(slots)]
+        models: list[_Models] = []
         encoder = Encoder(_TRAINING_SHIFT)  # its output is thrown away: only the models' adaptation matters
         for matrices in streams:
             for slot, matrix in enumerate(matrices):
+                if slot == len(models):
+                    models.append(_Models())
                 _encode_matrix(encoder, np.asarray(matrix, np.int64), models[slot])
         return cls.decode(cls([m.state() for m in models]).encode())
 

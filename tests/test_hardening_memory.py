@@ -1,0 +1,85 @@
+"""Bigger than memory (issue 5, item 6): `compress` streams clips instead of holding them all.
+
+Memory is not measured here (it depends on the machine); what bounds it is. Every clip
+`compress` reads is tracked by a weak reference, so the test sees how many loaded clips
+are alive at once: with no room to keep clips, a couple, however many clips the database
+has, and the archive is byte for byte the one written with every clip kept.
+"""
+
+from __future__ import annotations
+
+import os
+import weakref
+from pathlib import Path
+
+import pytest
+
+from mocapzip.archive import Settings, compress
+from mocapzip.clip import ClipReader
+
+# Six short real clips of two subjects: enough that "all clips at once" cannot pass for "a few".
+CLIPS = {"09": ["09_02", "09_03", "09_08"], "35": ["35_21", "35_24", "35_26"]}
+COUNT = sum(map(len, CLIPS.values()))
+FEW = 2  # clips alive at once when none are kept: the one being coded and the one just read
+
+
+@pytest.fixture(scope="module")
+def database(tmp_path_factory, shared_data) -> Path:
+    root = tmp_path_factory.mktemp("db")
+    for subject, names in CLIPS.items():
+        (root / subject).mkdir()
+        for name in [subject, *names]:
+            suffix = ".asf" if name == subject else ".amc"
+            os.symlink(shared_data / "cmu" / subject / f"{name}{suffix}", root / subject / f"{name}{suffix}")
+    return root
+
+
+class ReadTracker:
+    """Counts `ClipReader.read` calls and the most clips read and still alive at any read."""
+
+    def __init__(self, monkeypatch):
+        self.reads, self.most_alive, self._read = 0, 0, []  # weak references to every clip read
+        real_read = ClipReader.read
+
+        def read(reader, source):
+            clip = real_read(reader, source)
+            self.reads += 1
+            self._read.append(weakref.ref(clip))
+            self.most_alive = max(self.most_alive, sum(ref() is not None for ref in self._read))
+            return clip
+
+        monkeypatch.setattr(ClipReader, "read", read)
+
+
+def compressed(database: Path, path: Path, settings: Settings, **options) -> tuple[bytes, ReadTracker]:
+    with pytest.MonkeyPatch.context() as patch:
+        tracker = ReadTracker(patch)
+        compress([database], path, settings, **options)
+    return path.read_bytes(), tracker
+
+
+@pytest.fixture(scope="module")
+def all_kept(database, tmp_path_factory) -> tuple[bytes, ReadTracker]:
+    """The lossy archive written with room for every clip, and how its clips were read."""
+    return compressed(database, tmp_path_factory.mktemp("kept") / "db.mcz", Settings(), jobs=1, cache_bytes=None)
+
+
+def test_lossy_compress_holds_a_few_clips_when_none_fit(database, tmp_path, all_kept):
+    kept, kept_reads = all_kept
+    assert kept_reads.reads == COUNT  # every clip kept: each read once
+    streamed, streamed_reads = compressed(database, tmp_path / "db.mcz", Settings(), jobs=1, cache_bytes=0)
+    assert streamed_reads.reads > COUNT  # read again for the component search and the coding
+    assert streamed_reads.most_alive <= FEW < kept_reads.most_alive == COUNT
+    assert streamed == kept
+
+
+def test_forked_workers_read_the_clips_they_code(database, tmp_path, all_kept):
+    """-j 2 with no clip kept: workers read the clips themselves, and the archive is the same."""
+    streamed, _ = compressed(database, tmp_path / "db.mcz", Settings(), jobs=2, cache_bytes=0)
+    assert streamed == all_kept[0]
+
+
+def test_lossless_compress_reads_each_clip_once_and_keeps_none(database, tmp_path):
+    _, tracker = compressed(database, tmp_path / "db.mcz", Settings(lossless=True), jobs=1)
+    assert tracker.reads == COUNT
+    assert tracker.most_alive <= FEW
