@@ -23,7 +23,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .codec.coefficients import Priors, decode_matrices, encode_matrices
+from .codec.coefficients import Priors, decode_matrices, encode_matrices, matrix_shapes
 from .codec.entropy import decode_ints, encode_ints, encode_sparse
 from .codec.pca import CovarianceAccumulator, PcaBasis
 from .codec.quantise import UniformQuantiser
@@ -86,12 +86,15 @@ class ClassBasis:
         steps = np.frombuffer(blob, "<f4", q, pos)
         pos += 4 * q
         if coder != "zstd":
-            parts = decode_matrices(blob[pos:])
-            shapes = [part.shape for part in parts]
-            if shapes == [(m, 1), (m, 1), (m, q)]:
+            # Format 3 stores mean, reference offsets and residuals; format 2 mean and basis.
+            # Checked on the header, before anything is decoded (a damaged shape must not allocate).
+            stored = matrix_shapes(blob[pos:])
+            expected = [(m, 1), (m, 1), (m, q)] if len(stored) == 3 else [(m, 1), (m, q)]
+            if stored != expected:
+                raise ValueError(f"class basis matrices of shapes {stored} for a {m} x {q} basis")
+            parts = decode_matrices(blob[pos:], expected)
+            if len(parts) == 3:
                 parts = [parts[0], _undo_references(parts[2], parts[1].ravel())]
-            elif shapes != [(m, 1), (m, q)]:  # format 2 wrote no reference rows
-                raise ValueError(f"class basis matrices of shapes {shapes} for a {m} x {q} basis")
         else:
             parts = []
             for _ in range(2):
@@ -182,9 +185,8 @@ class CodedClip:
 
     def payload(self, coder: str = "context", priors: Priors | None = None) -> bytes:
         """`priors`: the archive's, for coder "primed"."""
-        matrices = self.matrices
-        if coder in ("context", "primed"):
-            priors = _priors_for(coder, priors)
+        matrices, priors = self.matrices, _priors_for(coder, priors)
+        if coder != "zstd":
             return struct.pack("<ff", self.pose_step, self.root_step) + encode_matrices(matrices, priors)
         parts = [encode_sparse(m) for m in matrices]
         head = struct.pack("<ddB", self.pose_step, self.root_step, len(parts))
@@ -194,9 +196,10 @@ class CodedClip:
     def from_payload(cls, blob: bytes, coder: str = "context", shapes=None,
                      priors: Priors | None = None) -> "CodedClip":
         """`shapes`: the pose and root matrices' shapes when the caller knows them (checked first)."""
-        if coder in ("context", "primed"):
+        priors = _priors_for(coder, priors)
+        if coder != "zstd":
             pose_step, root_step = struct.unpack_from("<ff", blob, 0)
-            arrays = decode_matrices(blob[8:], shapes, _priors_for(coder, priors))
+            arrays = decode_matrices(blob[8:], shapes, priors)
         else:
             pose_step, root_step, n = struct.unpack_from("<ddB", blob, 0)
             pos = 17
@@ -219,6 +222,10 @@ def interim_coder(coder: str) -> str:
 
 
 def _priors_for(coder: str, priors: Priors | None) -> Priors | None:
+    """The priors a stream of `coder` is coded with (None but for "primed"); refuses unknown coders,
+    which would otherwise be taken for the last layout tried ("auto" is for compress only)."""
+    if coder not in ("primed", "context", "zstd"):
+        raise ValueError(f"unknown coefficient coder {coder!r}")
     if coder == "primed" and priors is None:
         raise ValueError("coefficient coder 'primed' needs the archive's priors")
     return priors if coder == "primed" else None

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mocapzip.codec.coefficients import encode_matrices
-from mocapzip.lossy import MEAN_STEP_CM, ClassBasis, _reference_rows
+from mocapzip.lossy import MEAN_STEP_CM, ClassBasis, CodedClip, _reference_rows
 
 
 def related_basis(seed=0, groups=10, q=12):
@@ -59,3 +59,20 @@ def test_reference_to_a_later_row_is_refused():
         ClassBasis.decode(blob)
     with pytest.raises(ValueError, match="shapes"):
         ClassBasis.decode(head + encode_matrices([np.zeros((m, 1), np.int64)]))
+
+
+def test_shapes_are_checked_before_decoding():
+    """A header naming other shapes is refused before a matrix of that size is decoded."""
+    basis = related_basis(4)
+    m, q = basis.components.shape
+    head = basis.encode()[: 8 + 4 * basis.q]
+    other = encode_matrices([np.zeros((m, 1), np.int64), np.zeros((m, 1), np.int64), np.zeros((m + 1, q), np.int64)])
+    with pytest.raises(ValueError, match="shapes"):
+        ClassBasis.decode(head + other)
+
+
+def test_unknown_coder_is_refused_not_taken_for_zstd():
+    coded = CodedClip(1.0, np.zeros((3, 2), np.int64), 1.0, None)
+    for call in (lambda: coded.payload("auto"), lambda: CodedClip.from_payload(coded.payload(), "auto")):
+        with pytest.raises(ValueError, match="unknown coefficient coder"):
+            call()

@@ -41,7 +41,7 @@ import numpy as np
 from mocapzip.codec.entropy import ByteReader, write_varint
 from mocapzip.codec.rangecoder import Decoder, Encoder, new_models
 
-__all__ = ["encode_matrices", "decode_matrices", "Priors"]
+__all__ = ["encode_matrices", "decode_matrices", "matrix_shapes", "Priors"]
 
 _VERSION = 1  # models start at 1/2
 _PRIMED_VERSION = 2  # models start from the archive's priors
@@ -158,12 +158,9 @@ def decode_matrices(blob: bytes, shapes=None, priors: Priors | None = None) -> l
     A version-2 stream needs the `priors` it was coded with.
     """
     reader = ByteReader(bytes(blob))
-    version = reader.byte()
-    if version not in (_VERSION, _PRIMED_VERSION):
-        raise ValueError("not a coefficient stream of a known version")
+    version, stored = _read_header(reader)
     if version == _PRIMED_VERSION and priors is None:
         raise ValueError("coefficient stream coded with priors, but none were given")
-    stored = [(reader.varint(), reader.varint()) for _ in range(reader.byte())]
     if shapes is not None and stored != [tuple(shape) for shape in shapes][: len(stored)]:
         raise ValueError(f"coefficient matrices of shapes {stored}, expected {list(shapes)}")
     if any(rows * columns > _MAX_VALUES for rows, columns in stored):
@@ -174,6 +171,18 @@ def decode_matrices(blob: bytes, shapes=None, priors: Priors | None = None) -> l
                 for slot, (rows, columns) in enumerate(stored)]
     decoder.finish()
     return matrices
+
+
+def matrix_shapes(blob: bytes) -> list[tuple[int, int]]:
+    """The shapes of the matrices a stream holds, from its header alone (nothing is decoded)."""
+    return _read_header(ByteReader(bytes(blob)))[1]
+
+
+def _read_header(reader: ByteReader) -> tuple[int, list[tuple[int, int]]]:
+    version = reader.byte()
+    if version not in (_VERSION, _PRIMED_VERSION):
+        raise ValueError("not a coefficient stream of a known version")
+    return version, [(reader.varint(), reader.varint()) for _ in range(reader.byte())]
 
 
 def _context(current: list, previous: list, before: list, row: int) -> int:
