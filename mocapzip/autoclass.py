@@ -434,11 +434,11 @@ def _calibrate_clip(index: int):
 
     Truncations of the PCA of all clips give pairs (weighted pose RMS error, mean joint
     error): the truncation curve; each PCA share's target is read off it. Then, keeping the
-    components of the middle share, the codec's step search (`search.largest_step`, pose
-    and root quantised with one step) finds the step meeting the whole budget, and gamma
+    components of the middle share, the codec's step search (`search.largest_step`, the root
+    step a fixed share of the pose step as in the codec) finds the step meeting the whole budget, and gamma
     follows from the combination rule (see ByteProxy).
     """
-    from .lossy import scale_root, unscale_root
+    from .lossy import ROOT_STEP_RATIO, scale_root, unscale_root
     from .search import largest_step
 
     clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
@@ -492,8 +492,9 @@ def _calibrate_clip(index: int):
         quantiser = UniformQuantiser(step, dz)
         decoded = transform.inverse(quantiser.dequantise(quantiser.quantise(curves)), n)[frames]
         approx = pca.mean + decoded @ pca.components[:, :q0].T
+        root_quantiser = UniformQuantiser(step * ROOT_STEP_RATIO, dz)
         root_approx = None if root_curves is None else unscale_root(
-            transform.inverse(quantiser.dequantise(quantiser.quantise(root_curves)), n)[frames])
+            transform.inverse(root_quantiser.dequantise(root_quantiser.quantise(root_curves)), n)[frames])
         cache[step] = weighted_rms(truncated, approx)
         return joint_error(approx, root_approx)
 

@@ -21,6 +21,7 @@ from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
 from mocapzip.formats.mcz import FORMAT_VERSION
 from mocapzip.kinematics import forward
+from mocapzip.lossy import ROOT_STEP_RATIO, CodedClip
 from mocapzip.skeleton import SkeletonModel
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -88,6 +89,17 @@ def test_every_representation_round_trips_within_target(small_set, tmp_path, rep
         for i, row in enumerate(archive.clips):
             assert row["error_cm"] <= 1.0
             assert archive.decode(i).values.shape == (row["frames"], 62)
+
+
+def test_root_track_step_is_a_fixed_share_of_the_pose_step(small_set, tmp_path):
+    """A root error moves every joint, so the root track is coded finer (lossy.ROOT_STEP_RATIO)."""
+    compress([small_set], tmp_path / "db.mcz", Settings(error_cm=1.0))
+    with Archive(tmp_path / "db.mcz") as archive:
+        for i in range(len(archive.clips)):
+            coded = CodedClip.from_payload(archive._reader.read(f"clip/{i:05d}"),
+                                           archive.settings.coefficient_coder, priors=archive.priors)
+            assert coded.root_step == pytest.approx(ROOT_STEP_RATIO * coded.pose_step, rel=1e-6)
+            assert np.any(coded.root_ints)
 
 
 def test_dwt_and_forced_split(small_set, tmp_path):
