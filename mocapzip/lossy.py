@@ -34,8 +34,8 @@ from .search import largest_step, smallest_count
 
 YAW_RADIUS_CM = 50.0  # a typical joint's distance from the root: yaw error x this = cm
 MEAN_STEP_CM = 1e-3  # the class mean is kept finely: its error repeats on every frame
-# root track step / pose step; measured on CMU subjects 02, 07, 13 and 35 at 1 cm (B/frame):
-# 1.0: 1.809, 0.5: 1.661, 0.35: 1.630, 0.25: 1.619, 0.2: 1.619, 0.15: 1.622, 0.1: 1.650
+# root track step / pose step; `python benchmarks/root_step.py` (CMU subjects 02, 07, 13 and 35
+# at 1 cm, B/frame): 1.0: 1.955, 0.5: 1.810, 0.25: 1.768, 0.2: 1.768, 0.1: 1.798
 ROOT_STEP_RATIO = 0.2
 
 
