@@ -384,8 +384,9 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
         root_step, _ = largest_step(lambda s: error(1.0, s, exact="poses"), r_share * target, *STEP_RANGE)
         pose_step, _ = largest_step(lambda s: error(s, 1.0, exact="root"), (1 - r_share) * target, *STEP_RANGE)
         band = 1.0
-    else:
-        pose_step, band = _smallest_over_bands(code, error, target)
+    else:  # the root step follows the pose step
+        pose_step, band = _smallest_over_bands(lambda step, band: code(step, step * ROOT_STEP_RATIO, band),
+                                               lambda step, band: error(step, step * ROOT_STEP_RATIO, band), target)
         root_step = pose_step * ROOT_STEP_RATIO
     coded = code(pose_step, root_step, band)
     achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), final=True)
@@ -396,7 +397,8 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
 
 
 def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
-    """(step, band) of the smallest coding within `target` on the sampled frames (see code_clip).
+    """(step, band) of the smallest coding within `target` on the sampled frames (see code_clip);
+    `code` and `error` take (step, band).
 
     The error of dropping a band's top alone (finest step) is cheap to score, so bands whose
     truncation takes more than MAX_TRUNCATION_SHARE of the budget are never step-searched.
@@ -406,7 +408,7 @@ def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
     finest = STEP_RANGE[0]
 
     def admissible(i: int) -> bool:
-        return error(finest, finest * ROOT_STEP_RATIO, BANDS[i]) <= MAX_TRUNCATION_SHARE * target
+        return error(finest, BANDS[i]) <= MAX_TRUNCATION_SHARE * target
 
     # BANDS narrow as i grows and the truncation error grows with them; BANDS[0] keeps everything
     widest, narrowest = 0, len(BANDS) - 1
@@ -418,10 +420,10 @@ def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
     best, best_size = None, None
     low, high, guess = *STEP_RANGE, STEP_GUESS * target
     for band in BANDS[narrowest::-1]:
-        step, err = largest_step(lambda s: error(s, s * ROOT_STEP_RATIO, band), target, low, high, guess=guess)
+        step, err = largest_step(lambda s: error(s, band), target, low, high, guess=guess)
         if err > target:
             break
-        size = len(code(step, step * ROOT_STEP_RATIO, band).payload())
+        size = len(code(step, band).payload())
         if best is not None and size >= best_size:
             break
         best, best_size = (step, band), size
