@@ -24,7 +24,7 @@ from .errors import MocapFormatError
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
 
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 MAGIC = "MCZ mocapzip archive"
 _WRITE_BATCH = 1 << 20  # one h5py write per small stream costs ~50 us; batch them instead
 

@@ -39,6 +39,7 @@ from .lossy import ClassBasis, CodedClip, code_clip, encode_class, interim_coder
 from .skeleton import ChannelLayout, SkeletonModel
 from .progress import progress
 from .representations.base import Encoded
+from .representations.positions import flips_from_ranges
 from .segment import OVERLAP, coded_range, join_segments, segment_take
 
 DEFAULT_ERROR_CM = 1.0
@@ -65,6 +66,9 @@ class Settings:
     # "context" (models start at 1/2; format 2), "zstd" (format 1); "auto" (compress only): "primed"
     # when the priors pay for themselves, else "context". Archives store the coder used.
     coefficient_coder: str = "auto"
+    # bones whose rotation follows from joint positions store no axis (representations.positions.solved_bones);
+    # absent, in formats 1 to 3: false
+    axes_from_positions: bool = True
 
 
 def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
@@ -90,7 +94,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, inputs)))
     keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
     reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
-                        None if keeps_all else cache_bytes)
+                        None if keeps_all else cache_bytes, settings.axes_from_positions)
     with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
         scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all)
         if not scan.sources:
@@ -278,15 +282,17 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
     for k, name in enumerate(progress(class_names, desc="classes", unit="class")):
         members = [u for u, c in enumerate(unit_class) if c == name]
         clips = ClipsOnDemand([units[u] for u in members], lambda unit: unit.load(reader))
-        basis, payloads, errors = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
+        basis, payloads, errors, twists = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
         writer.add(f"class/{k:04d}", basis.encode(settings.coefficient_coder))
         classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
                              "frames": sum(units[u].coded_frames for u in members)})
-        for u, payload, (mean_err, max_err) in zip(members, payloads, errors):
+        for u, payload, (mean_err, max_err), twist_flips in zip(members, payloads, errors, twists):
             unit = units[u]
             if unit.coded is None:
                 interim[f"clip/{unit.clip:05d}"] = payload
                 scan.rows[unit.clip].update(error_cm=mean_err, max_error_cm=max_err)
+                if twist_flips:
+                    scan.rows[unit.clip]["twist_flips"] = twist_flips
                 reader.forget([unit.source])
             else:
                 segments[u] = (k, basis, payload, (mean_err, max_err))
@@ -321,7 +327,8 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
                                                                        (unit.coded_frames, 4)]),
                                c[1], transform, dz, unit.coded_frames)
                    for payload, c, unit in zip(payloads, coded, units)]
-        mean_err, max_err = clip.error(*_joined(decoded, cores, clip.motion.n_frames, OVERLAP), final=True)
+        joined = _joined(decoded, cores, clip.motion.n_frames, OVERLAP)
+        mean_err, max_err = clip.error(*joined, final=True)
         if mean_err <= target:
             break
         target *= 0.9
@@ -337,6 +344,9 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
         segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
                          "error_cm": seg_mean, "max_error_cm": seg_max})
     row.update(segments=segments, segment_overlap=OVERLAP, error_cm=mean_err, max_error_cm=max_err)
+    twist_flips = clip.twist_flips(*joined)
+    if twist_flips:
+        row["twist_flips"] = twist_flips
     row["class"] = segments[0]["class"]
     return streams
 
@@ -371,7 +381,8 @@ class Archive:
         self._reader = ArchiveReader(path)
         try:
             self.meta = self._json("meta")
-            self.settings = Settings(**{"coefficient_coder": "zstd", **self.meta["settings"]})  # format 1 had no field
+            # fields older formats did not have, as those formats meant them
+            self.settings = Settings(**{"coefficient_coder": "zstd", "axes_from_positions": False, **self.meta["settings"]})
         except (KeyError, TypeError, ValueError) as exc:
             self._reader.close()
             raise ArchiveError(f"meta: invalid ({exc})", self.path) from exc
@@ -440,7 +451,9 @@ class Archive:
                 else:
                     poses, root = self._reconstruct(name, row["class"], row["frames"])
                 poses = poses / pose_weights(model, name_, poses.shape[1], self.settings.axis_weight_cm)
-                values = channels_from(model, name_, layout, poses, root, skeleton_params(model, name_, layout))
+                params = {**skeleton_params(model, name_, layout),
+                          "twist": flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])}
+                values = channels_from(model, name_, layout, poses, root, params, self.settings.axes_from_positions)
         except (ValueError, KeyError, IndexError, EOFError) as exc:
             raise ArchiveError(f"{name} ({row['path']}): damaged ({exc})", self.path) from exc
         if values.shape != (row["frames"], sum(row["counts"])):

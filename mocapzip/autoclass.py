@@ -423,7 +423,8 @@ def _column_weights(clip, frames: int = 4, delta: float = 1e-3) -> np.ndarray:
     batch[:, 1:, :] += np.eye(m) * delta
     batch = batch.reshape(-1, m) / _pose_scale(clip)
     root = None if clip.root is None else np.repeat(clip.root[index], m + 1, axis=0)
-    values = channels_from(clip.model, clip.representation_name, clip.layout, batch, root, clip.encoded.params)
+    values = channels_from(clip.model, clip.representation_name, clip.layout, batch, root, clip.encoded.params,
+                           clip.axes_from_positions)
     positions = forward(clip.model, values, clip.layout).positions.reshape(len(index), m + 1, -1, 3)
     moved = positions[:, 1:] - positions[:, :1]
     return np.maximum((moved**2).sum(axis=-1).mean(axis=-1).mean(axis=0) / delta**2, 0.0)

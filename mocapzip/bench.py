@@ -505,25 +505,29 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
     from .codec import get_stage
     from .formats.amc import Motion, format_amc, parse_amc
     from .lossy import ClassBasis, CodedClip, code_clip, reconstruct
+    from .representations.positions import flips_from_ranges
 
     transform = get_stage(_transform_config(task["transform"], options.wavelet))
-    dead_zone = Settings().dead_zone
+    dead_zone, axes_from_positions = Settings().dead_zone, Settings().axes_from_positions
     rows, distances = [], {}
     encode_seconds = decode_seconds = 0.0
     for clip in progress(clips, desc="no PCA", unit="clip"):
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            loaded = load_clips([clip.source], task["representation"])[0]
+            loaded = load_clips([clip.source], task["representation"], axes_from_positions=axes_from_positions)[0]
         basis = ClassBasis(np.zeros(loaded.poses.shape[1]), np.eye(loaded.poses.shape[1]), np.ones(loaded.poses.shape[1]))
         coded, _ = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
         payload = coded.payload()
+        n_frames = loaded.motion.n_frames
+        twist_flips = loaded.twist_flips(*reconstruct(coded, basis, transform, dead_zone, n_frames))  # as in a row
         middle = time.perf_counter()
         model, layout = loaded.model, loaded.layout
-        poses, root = reconstruct(CodedClip.from_payload(payload), basis, transform, dead_zone, loaded.motion.n_frames)
+        poses, root = reconstruct(CodedClip.from_payload(payload), basis, transform, dead_zone, n_frames)
         poses = poses / getattr(loaded, "weights", 1.0)  # the codec's pose weights, when it has them
-        values = channels_from(model, task["representation"], layout, poses, root,
-                               skeleton_params(model, task["representation"], layout))
+        params = {**skeleton_params(model, task["representation"], layout),
+                  "twist": flips_from_ranges(twist_flips, model, n_frames)}
+        values = channels_from(model, task["representation"], layout, poses, root, params, axes_from_positions)
         m = loaded.motion
         text = format_amc(Motion(m.bones, m.counts, values, m.frame_numbers, m.header, clip.path))  # as decompress does
         decode_seconds += time.perf_counter() - middle

@@ -22,6 +22,7 @@ from .metrics import joint_distances
 from .progress import progress
 from .representations import get_representation
 from .representations.base import Encoded
+from .representations.positions import flip_ranges, true_twists
 from .skeleton import ChannelLayout, SkeletonModel
 
 
@@ -34,6 +35,7 @@ class LoadedClip:
     representation_name: str | None
     positions: np.ndarray | None  # (F, J, 3) cm, original joint positions (lossy mode)
     axis_weight_cm: float = 1.0
+    axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
 
     @cached_property
     def weights(self) -> np.ndarray:
@@ -64,14 +66,30 @@ class LoadedClip:
         """(mean, max) joint-position error in cm of decoded `poses`/`root` for the original `frames`.
 
         `final` rounds the channels as the AMC writer will (the source's number style), as on disk.
+        Solved bones take the twist nearer the original (`twist_flips` tells the decoder which).
         """
-        values = channels_from(self.model, self.representation_name, self.layout, poses / self.weights, root,
-                               self.encoded.params)
+        values = self._channels(poses, root, frames)[0]
         if final:
             values = round_as_written(values, self.motion.style)
         decoded = forward(self.model, values, self.layout).positions
         distances = joint_distances(self.positions[frames], decoded)
         return float(distances.mean()), float(distances.max())
+
+    def twist_flips(self, poses: np.ndarray, root: np.ndarray | None) -> dict[str, list[int]]:
+        """What the archive row stores so that decoding `poses`/`root` (all frames) gives the
+        channels `error` scored: the frames where a 2-dof solved bone takes its other
+        solution (`positions.TwistChoice`, `flip_ranges`). Empty without solved bones."""
+        if not self.axes_from_positions:
+            return {}
+        return flip_ranges(self._channels(poses, root, slice(None))[1].flips, self.model)
+
+    def _channels(self, poses: np.ndarray, root: np.ndarray | None, frames):
+        """Channels decoded from weighted `poses` of the original `frames`, twists chosen towards
+        the original's, and the TwistChoice made."""
+        twist = true_twists(self.model, self.motion.values[frames], self.layout) if self.axes_from_positions else None
+        values = channels_from(self.model, self.representation_name, self.layout, poses / self.weights, root,
+                               {**self.encoded.params, "twist": twist}, self.axes_from_positions)
+        return values, twist
 
 
 def round_as_written(values: np.ndarray, style: AmcStyle) -> np.ndarray:
@@ -100,9 +118,10 @@ def pose_weights(model: SkeletonModel, representation_name: str, width: int, axi
 
 
 def channels_from(model: SkeletonModel, representation_name: str, layout: ChannelLayout,
-                  poses: np.ndarray, root: np.ndarray | None, params: dict) -> np.ndarray:
+                  poses: np.ndarray, root: np.ndarray | None, params: dict,
+                  axes_from_positions: bool = False) -> np.ndarray:
     """Decoded representation -> AMC channel values in `layout`."""
-    representation = get_representation(representation_name)
+    representation = get_representation(representation_name, axes_from_positions)
     return representation.inverse(model, Encoded(poses, root, params), layout)
 
 
@@ -115,12 +134,12 @@ def skeleton_params(model: SkeletonModel, representation_name: str, layout: Chan
 
 
 def load_clips(sources: list[ClipSource], representation_name: str | None,
-               axis_weight_cm: float = 1.0) -> list[LoadedClip]:
+               axis_weight_cm: float = 1.0, axes_from_positions: bool = False) -> list[LoadedClip]:
     """Read every clip (checking it against its skeleton) and convert it to the representation.
 
     A clip that cannot be read raises MocapFormatError or OSError.
     """
-    reader = ClipReader(representation_name, axis_weight_cm)
+    reader = ClipReader(representation_name, axis_weight_cm, axes_from_positions=axes_from_positions)
     return [reader.read(source) for source in progress(sources, desc="read", unit="clip")]
 
 
@@ -136,8 +155,9 @@ class ClipReader:
     """
 
     def __init__(self, representation_name: str | None, axis_weight_cm: float = 1.0,
-                 budget_bytes: int | None = None):
+                 budget_bytes: int | None = None, axes_from_positions: bool = False):
         self.representation_name, self.axis_weight_cm = representation_name, axis_weight_cm
+        self.axes_from_positions = axes_from_positions
         self.budget_bytes = budget_bytes
         self._skeletons: dict = {}  # ASF path -> (skeleton, model): small, read once
         self._kept: dict[ClipSource, LoadedClip] = {}
@@ -153,10 +173,10 @@ class ClipReader:
         motion = read_amc(source.amc, skeleton)
         encoded = positions = None
         if self.representation_name is not None:
-            encoded = get_representation(self.representation_name).forward(model, motion)
+            encoded = get_representation(self.representation_name, self.axes_from_positions).forward(model, motion)
             positions = forward(model, motion.values, motion).positions
         return LoadedClip(source, model, motion, encoded, self.representation_name, positions,
-                          self.axis_weight_cm)
+                          self.axis_weight_cm, self.axes_from_positions)
 
     def load(self, source: ClipSource) -> LoadedClip:
         """The kept clip, or the clip read again."""

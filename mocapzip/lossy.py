@@ -249,8 +249,9 @@ _SHARED: dict = {}  # what forked workers read (clips are large: they are inheri
 
 
 def encode_class(clips, transform, settings, jobs: int = 1, accumulator: CovarianceAccumulator | None = None):
-    """Fit the class basis and code each clip within settings.error_cm; return (basis, payloads, errors):
-    each clip's stream (`CodedClip.payload`) and achieved (mean, max) error.
+    """Fit the class basis and code each clip within settings.error_cm; return (basis, payloads, errors,
+    twists): each clip's stream (`CodedClip.payload`), achieved (mean, max) error and twist flips
+    (`LoadedClip.twist_flips`, for its row).
 
     The budget split is a search: for each candidate PCA share, the class keeps the fewest
     components that bring every clip's PCA-only error under that share, then each clip gets
@@ -275,16 +276,16 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         # Shares that need the same component count get the same basis and coding: code it once.
         counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
         precision = dict.fromkeys(counts, settings.basis_precision)
-        codings = {}  # component count -> (basis, payloads, errors)
+        codings = {}  # component count -> (basis, payloads, errors, twists)
         pending = counts
         for _ in range(BASIS_REFINEMENTS):
             steps = [ClassBasis.steps_for(pca.variances[:q], target, precision[q]) for q in pending]
             bases = _SHARED["bases"] = [ClassBasis.quantised(pca.mean, pca.components[:, :q], step)
                                         for q, step in zip(pending, steps)]
-            per_clip = _parallel(_code_clip, range(len(clips)), jobs)  # per clip, (payload, error) per basis
+            per_clip = _parallel(_code_clip, range(len(clips)), jobs)  # per clip, (payload, error, twists) per basis
             for b, (q, basis) in enumerate(zip(pending, bases)):
-                payloads, errors = zip(*(codings_of_clip[b] for codings_of_clip in per_clip))
-                codings[q] = (basis, list(payloads), list(errors))
+                payloads, errors, twists = zip(*(codings_of_clip[b] for codings_of_clip in per_clip))
+                codings[q] = (basis, list(payloads), list(errors), list(twists))
             pending = [q for q in pending if max(e[0] for e in codings[q][2]) > target]
             if not pending:
                 break
@@ -297,11 +298,10 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         _SHARED.clear()
     best = None
     for q in counts:  # in share order: on equal sizes the first share wins
-        basis, payloads, errors = codings[q]
-        size = len(basis.encode(settings.coefficient_coder)) + sum(map(len, payloads))
+        size = len(codings[q][0].encode(settings.coefficient_coder)) + sum(map(len, codings[q][1]))
         if best is None or size < best[0]:
-            best = (size, basis, payloads, errors)
-    return best[1], best[2], best[3]
+            best = (size, codings[q])
+    return best[1]
 
 
 def _parallel(function, items, jobs: int) -> list:
@@ -331,14 +331,15 @@ def _components_for_shares(index: int) -> list[int]:
     return [smallest_count(error, share * settings.error_cm, 0, pca.components.shape[1]) for share in shares]
 
 
-def _code_clip(index: int) -> list[tuple[bytes, tuple[float, float]]]:
-    """The clip coded with each candidate basis, as (payload, (mean, max) error): one load for all."""
-    settings, clip = _SHARED["settings"], _SHARED["clips"][index]
+def _code_clip(index: int) -> list[tuple[bytes, tuple[float, float], dict]]:
+    """The clip coded with each candidate basis, as (payload, (mean, max) error, twist flips):
+    one load for all."""
+    settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
     out = []
     for basis in _SHARED["bases"]:
-        coded, error = code_clip(clip, basis, _SHARED["transform"], settings.error_cm, settings.dead_zone,
-                                 settings.split)
-        out.append((coded.payload(interim_coder(settings.coefficient_coder)), error))
+        coded, error = code_clip(clip, basis, transform, settings.error_cm, settings.dead_zone, settings.split)
+        twists = clip.twist_flips(*reconstruct(coded, basis, transform, settings.dead_zone, clip.motion.n_frames))
+        out.append((coded.payload(interim_coder(settings.coefficient_coder)), error, twists))
     return out
 
 

@@ -22,6 +22,8 @@ from mocapzip.formats.asf import read_asf
 from mocapzip.formats.mcz import FORMAT_VERSION
 from mocapzip.kinematics import forward
 from mocapzip.lossy import ROOT_STEP_RATIO, CodedClip
+from mocapzip.metrics import skin_error
+from mocapzip.rotations import rotation_angle
 from mocapzip.skeleton import SkeletonModel
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -102,6 +104,30 @@ def test_root_track_step_is_a_fixed_share_of_the_pose_step(small_set, tmp_path):
             assert np.any(coded.root_ints)
 
 
+def test_solved_bones_decode_with_the_twists_the_encoder_chose(shared_data, tmp_path):
+    """Format 4 leaves out the axes of bones the joint positions fix (CMU: 180 -> 129 values),
+    except for which of two twists a 2-dof bone takes: the row's twist_flips say, and the
+    decoder must follow them (subject 64's left thumb sits in the non-default one)."""
+    inputs = [shared_data / "cmu" / "64" / name for name in ("64_01.amc", "64_02.amc")]
+    compress(inputs, tmp_path / "db.mcz", Settings(error_cm=1.0))
+    model = SkeletonModel.from_asf(read_asf(shared_data / "cmu/64/64.asf"))
+    with Archive(tmp_path / "db.mcz") as archive:
+        assert archive.settings.axes_from_positions and archive._basis(0).components.shape[0] == 129
+        for i, row in enumerate(archive.clips):
+            assert set(row["twist_flips"]) == {"lthumb"}
+            original = read_amc(shared_data / "cmu" / "64" / row["path"])
+            truth = forward(model, original.values, original)
+            with_flips = forward(model, archive.decode(i).values, original)
+            del row["twist_flips"]
+            without = forward(model, archive.decode(i).values, original)
+            assert np.linalg.norm(with_flips.positions - truth.positions, axis=-1).mean() <= 1.0 + 1e-6
+            thumb = model.index["lthumb"]  # lossy, but not half a turn off
+            errors = [np.median(rotation_angle(pose.rotations[:, thumb], truth.rotations[:, thumb]))
+                      for pose in (with_flips, without)]
+            assert errors[0] < 1.0 < 2.0 < errors[1]
+            assert skin_error(model, truth, with_flips) < skin_error(model, truth, without)
+
+
 def test_dwt_and_forced_split(small_set, tmp_path):
     settings = Settings(error_cm=1.0, transform={"id": "dwt", "wavelet": "db4", "level": None}, split=[0.2, 0.4, 0.4])
     summary = compress([small_set / "09"], tmp_path / "db.mcz", settings)
@@ -132,23 +158,31 @@ def test_lossless_channel_coding_is_exact_on_every_shared_amc(shared_data):
 
 @pytest.mark.parametrize("version", range(1, FORMAT_VERSION + 1))
 def test_golden_archives_keep_decoding(shared_data, version):
+    def source(row):  # golden inputs are CMU files named SUBJECT_TRIAL.amc
+        folder = shared_data / "cmu" / row["path"].split("_")[0]
+        return folder / row["path"], folder / f"{folder.name}.asf"
+
     with Archive(GOLDEN / f"lossless_v{version}.mcz") as archive:
         assert archive.format_version == version
         for i, row in enumerate(archive.clips):
-            original = read_amc(shared_data / "cmu" / "09" / row["path"])
-            assert np.array_equal(archive.decode(i).values, original.values)
+            assert np.array_equal(archive.decode(i).values, read_amc(source(row)[0]).values)
     with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
         assert archive.format_version == version
         assert archive.settings.coefficient_coder == {1: "zstd", 2: "context"}.get(version, "primed")
-        skeleton = read_asf(shared_data / "cmu/09/09.asf")
-        assert archive.skeleton_text(0).encode("latin-1") == (shared_data / "cmu/09/09.asf").read_bytes()
-        model = SkeletonModel.from_asf(skeleton)
+        assert archive.settings.axes_from_positions == (version >= 4)
+        flipped = 0
         for i, row in enumerate(archive.clips):
-            original = read_amc(shared_data / "cmu" / "09" / row["path"])
-            decoded = archive.decode(i)
-            a = forward(model, original.values, original).positions
-            b = forward(model, decoded.values, decoded).positions
-            assert np.linalg.norm(a - b, axis=-1).mean() <= row["error_cm"] + 1e-3 <= 1.0 + 1e-3
+            amc, asf = source(row)
+            assert archive.skeleton_text(row["skeleton"]).encode("latin-1") == asf.read_bytes()
+            model = SkeletonModel.from_asf(read_asf(asf))
+            original, decoded = read_amc(amc), archive.decode(i)
+            a, b = forward(model, original.values, original), forward(model, decoded.values, decoded)
+            assert np.linalg.norm(a.positions - b.positions, axis=-1).mean() <= row["error_cm"] + 1e-3 <= 1.0 + 1e-3
+            for name in row.get("twist_flips", {}):  # the flipped bones come out the right way round
+                j = model.index[name]
+                assert np.median(rotation_angle(a.rotations[:, j], b.rotations[:, j])) < 1.0
+                flipped += 1
+        assert flipped == (1 if version >= 4 else 0)
 
 
 def test_cli_refuses_to_overwrite_and_extracts_by_pattern(small_set, tmp_path):

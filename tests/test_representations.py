@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from functools import lru_cache
 from pathlib import Path
 
@@ -15,7 +16,7 @@ from mocapzip.formats.asf import read_asf
 from mocapzip.kinematics import forward
 from mocapzip.representations import NAMES, get_representation
 from mocapzip.representations.aligned import heading, position_columns
-from mocapzip.representations.positions import decode_markers
+from mocapzip.representations.positions import decode_markers, flip_ranges, flips_from_ranges, solved_bones, true_twists
 from mocapzip.representations.universal import UNIVERSAL_HEIGHT_CM, UNIVERSAL_LENGTHS_CM, skeleton_height
 from mocapzip.rotations import axis_rotation, euler_angles, rotation_angle
 from mocapzip.skeleton import SkeletonModel
@@ -46,21 +47,74 @@ def with_values(motion: Motion, values: np.ndarray) -> Motion:
     return dataclasses.replace(motion, values=values)
 
 
-def round_trip_errors(name: str, model: SkeletonModel, motion: Motion) -> tuple[float, float]:
-    """Worst joint distance (cm) and bone rotation error (rad) after forward + inverse."""
-    rep = get_representation(name)
-    values = rep.inverse(model, rep.forward(model, motion), motion)
+def round_trip_errors(name: str, model: SkeletonModel, motion: Motion,
+                      axes_from_positions: bool = False) -> tuple[float, float]:
+    """Worst joint distance (cm) and bone rotation error (rad) after forward + inverse; solved
+    bones' twists chosen as the encoder chooses them (towards the clip's own rotations)."""
+    rep = get_representation(name, axes_from_positions)
+    encoded = rep.forward(model, motion)
+    encoded.params["twist"] = true_twists(model, motion.values, motion)
+    values = rep.inverse(model, encoded, motion)
     original, back = forward(model, motion.values, motion), forward(model, values, motion)
     position = np.linalg.norm(back.positions - original.positions, axis=-1).max()
     return float(position), float(rotation_angle(back.rotations, original.rotations).max())
 
 
+@pytest.mark.parametrize("axes_from_positions", [False, True])
 @pytest.mark.parametrize("name", NAMES)
 @pytest.mark.parametrize("key", sorted(CLIPS))
-def test_round_trip_is_exact(key, name):
-    position, rotation = round_trip_errors(name, *load(key))
+def test_round_trip_is_exact(key, name, axes_from_positions):
+    position, rotation = round_trip_errors(name, *load(key), axes_from_positions)
     assert position < 1e-4
     assert rotation < 1e-5
+
+
+def test_solved_bones_of_cmu_are_those_without_twist():
+    model, motion = load("cmu-walk")
+    solved = {model.names[j] for j in np.flatnonzero(solved_bones(model))}
+    limbs = {"hipjoint", "tibia", "foot", "toes", "clavicle", "radius", "hand", "fingers", "thumb"}
+    assert solved == {side + limb for side in "lr" for limb in limbs} - {"lhipjoint"}  # lhipjoint: root proxy
+    assert "lwrist" not in solved  # its one dof (ry) turns the forearm about itself
+    widths = {name: get_representation(name, True).forward(model, motion).poses.shape[1] for name in NAMES}
+    assert widths == {"channels": 62, "positions": 183 - 51, "aligned": 180 - 51, "scaled": 129, "normalised": 129}
+
+
+def test_twist_flips_choose_between_the_two_solutions():
+    # Subject 64 holds its left thumb (rx rz) in the solution the default rule does not take:
+    # positions cannot tell the two apart, the stored flips can.
+    model = SkeletonModel.from_asf(read_asf(DATA / "cmu/64/64.asf"))
+    motion = read_amc(DATA / "cmu/64/64_01.amc")
+    rep = get_representation("positions", axes_from_positions=True)
+    encoded = rep.forward(model, motion)
+    original = forward(model, motion.values, motion)
+    thumb = model.index["lthumb"]
+
+    def decoded_with(twist):
+        encoded.params["twist"] = twist
+        return forward(model, rep.inverse(model, encoded, motion), motion)
+
+    by_default = decoded_with(None)
+    assert np.abs(by_default.positions - original.positions).max() < 1e-6
+    assert rotation_angle(by_default.rotations, original.rotations)[:, thumb].max() > 3.0  # half a turn
+
+    chosen = true_twists(model, motion.values, motion)
+    decoded_with(chosen)
+    ranges = flip_ranges(chosen.flips, model)
+    assert set(ranges) == {"lthumb"}
+    stored = flips_from_ranges(json.loads(json.dumps(ranges)), model, motion.n_frames)  # as a row keeps them
+    assert rotation_angle(decoded_with(stored).rotations, original.rotations).max() < 1e-6
+
+
+def test_flip_ranges_round_trip():
+    model, _ = load("cmu-walk")
+    rng = np.random.default_rng(2)
+    flips = {model.index["lfoot"]: rng.random(50) < 0.3, model.index["rhand"]: np.ones(50, bool),
+             model.index["lthumb"]: np.zeros(50, bool)}
+    ranges = flip_ranges(flips, model)
+    assert set(ranges) == {"lfoot", "rhand"} and ranges["rhand"] == [0, 50]
+    back = flips_from_ranges(ranges, model, 50).flips
+    assert set(back) == {model.index["lfoot"], model.index["rhand"]}
+    assert all(np.array_equal(back[j], flips[j]) for j in back)
 
 
 def test_registry():

@@ -10,6 +10,10 @@
 | aligned | positions without root translation and heading: 180 | x, y, z, yaw |
 | scaled | aligned x (universal height / skeleton height) | x, y, z, yaw |
 | normalised | aligned with universal bone lengths | x, y, z, yaw |
+
+`get_representation(name, axes_from_positions=True)` leaves out the axes of bones
+whose rotation follows from the joint positions (`positions.solved_bones`; CMU:
+183 -> 132 and 180 -> 129 values), as the codec does since format 4.
 """
 
 from __future__ import annotations
@@ -21,14 +25,15 @@ from .normalised import Normalised
 from .positions import Positions
 from .scaled import Scaled
 
-_REGISTRY: dict[str, Representation] = {r.name: r for r in (Channels(), Positions(), Aligned(), Scaled(), Normalised())}
-NAMES = tuple(_REGISTRY)
+_REGISTRY = {flag: {r.name: r for r in (Channels(flag), Positions(flag), Aligned(flag), Scaled(flag), Normalised(flag))}
+             for flag in (False, True)}
+NAMES = tuple(_REGISTRY[False])
 
 
-def get_representation(name: str) -> Representation:
-    """The representation called `name` (one of NAMES)."""
+def get_representation(name: str, axes_from_positions: bool = False) -> Representation:
+    """The representation called `name` (one of NAMES); see the module doc for the flag."""
     try:
-        return _REGISTRY[name]
+        return _REGISTRY[bool(axes_from_positions)][name]
     except KeyError:
         raise KeyError(f"unknown representation {name!r}; choose one of {', '.join(NAMES)}") from None
 

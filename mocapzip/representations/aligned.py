@@ -5,7 +5,7 @@ the root is at the origin (the root position is then always zero and is not
 stored) and turned about the vertical (+Y, the Acclaim/CMU up axis) by minus
 the heading. The root track holds x, y, z (cm) and the heading (radians,
 unwrapped) per frame. Columns: as `positions` without the root position
-(CMU: 30 positions + 30 axes = 180).
+(CMU: 30 positions + 30 axes = 180; 30 + 13 = 129 with solved bones).
 
 Heading. The thesis projects the root's x axis on the ground, which fails when
 that axis points up and flips by 180 degrees upside down. Here the heading is
@@ -58,12 +58,17 @@ def position_columns(model: SkeletonModel) -> int:
 class Aligned:
     name = "aligned"
 
+    def __init__(self, axes_from_positions: bool = False):
+        self.axes_from_positions = axes_from_positions  # see positions.solved_bones
+
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         pose = forward(model, motion.values, motion)
         root = np.column_stack([pose.positions[:, 0], heading(pose.rotations[:, 0])])
-        return Encoded(encode_markers(model, to_character_frame(pose, root), with_root=False), root)
+        local = to_character_frame(pose, root)
+        return Encoded(encode_markers(model, local, with_root=False, axes_from_positions=self.axes_from_positions), root)
 
     def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
-        local = decode_markers(model, encoded.poses, with_root=False)
+        local = decode_markers(model, encoded.poses, with_root=False, axes_from_positions=self.axes_from_positions,
+                               twist=encoded.params.get("twist"))
         turn = axis_rotation("y", encoded.root[:, 3])
         return inverse(model, local.rotations @ turn[:, None], encoded.root[:, :3], layout)

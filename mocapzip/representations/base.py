@@ -17,7 +17,8 @@ class Encoded:
     `poses` is the (frames x M) matrix, one pose per row. `root` is the separate
     root-motion track (frames x 4: x, y, z in cm and yaw in radians, unwrapped)
     for the aligned family, None otherwise. `params` holds the few per-clip
-    values the inverse needs (e.g. the height scale), small enough to store as is.
+    values the inverse needs (e.g. the height scale), small enough to store as is, and
+    `params["twist"]`, a `positions.TwistChoice` for solved bones (absent: the default).
     """
 
     poses: np.ndarray

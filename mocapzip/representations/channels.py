@@ -11,6 +11,9 @@ from .base import Encoded
 class Channels:
     name = "channels"
 
+    def __init__(self, axes_from_positions: bool = False):
+        """`axes_from_positions` is accepted like the other representations' and means nothing here."""
+
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         model.layout(motion)  # checks the clip against the skeleton, like the other representations
         return Encoded(np.array(motion.values, dtype=np.float64))

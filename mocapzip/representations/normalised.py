@@ -32,8 +32,11 @@ def rescale_bones(model: SkeletonModel, poses: np.ndarray, factors: np.ndarray) 
 class Normalised:
     name = "normalised"
 
+    def __init__(self, axes_from_positions: bool = False):
+        self.aligned = Aligned(axes_from_positions)
+
     def forward(self, model: SkeletonModel, motion) -> Encoded:
-        encoded = Aligned().forward(model, motion)
+        encoded = self.aligned.forward(model, motion)
         lengths = model.lengths
         norm = np.divide(universal_lengths(model), lengths, out=np.ones_like(lengths), where=lengths > 0)
         encoded.poses = rescale_bones(model, encoded.poses, norm)
@@ -42,4 +45,4 @@ class Normalised:
 
     def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
         poses = rescale_bones(model, encoded.poses, 1.0 / encoded.params["norm"])
-        return Aligned().inverse(model, Encoded(poses, encoded.root), layout)
+        return self.aligned.inverse(model, Encoded(poses, encoded.root, encoded.params), layout)

@@ -14,34 +14,185 @@ Special cases, each stored explicitly so the inverse stays exact:
 - skeletons whose root children all rotate: the root's x and y axes (6 values).
 Leaf bones need nothing special: their end point is a joint position too.
 
+Solved bones (`axes_from_positions`, the codec's default since format 4): a bone
+with at most two rotation dofs, none of them about the bone itself, has its
+rotation fixed by its parent's rotation and its own direction, so its y axis is
+not stored; the inverse solves its angles from the joint positions
+(`solved_bones`, `solve_local`). CMU: 17 of 30 bones (knees, feet, toes,
+clavicles, elbows, hands, fingers, thumbs, rhipjoint), 183 -> 132 values per
+frame. Their y axes are nearly functions of the positions, but not linear ones,
+so PCA spent components on them (sizes: `benchmarks/solved_bones.py`,
+docs/architecture.md). A 2-dof bone has two solutions half a turn apart, which the
+positions cannot tell apart: `TwistChoice` says which.
+
 Column order: positions (root first unless the caller drops it), y axes of
-bones 1..J-1, x axes of short bones, root axes.
+bones 1..J-1 (solved bones left out), x axes of short bones, root axes.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from ..kinematics import Pose, forward, inverse
-from ..rotations import orthonormal_frame
+from ..rotations import AXIS_INDEX, axis_rotation, euler_matrix, orthonormal_frame, wrap
 from ..skeleton import SkeletonModel
 from .base import Encoded
 
+# A dof axis closer to the bone than this cosine (60 degrees) mostly twists the bone
+# about itself, which its direction cannot show: such a bone keeps its stored axis.
+TWIST_COSINE = 0.5
 
-def marker_width(model: SkeletonModel, with_root: bool) -> int:
+
+def solved_bones(model: SkeletonModel) -> np.ndarray:
+    """(J,) bool: bones whose rotation the inverse solves from joint positions (module doc).
+
+    Not the root proxy (its axes give the root's rotation) nor short bones (no usable
+    direction); at most two distinct rotation dofs, each at least 60 degrees from the bone.
+    """
+    out = np.zeros(model.n_joints, bool)
+    for j in range(1, model.n_joints):
+        axes = model.rotation_axes(j)
+        if model.short[j] or j == model.root_proxy or len(axes) > 2 or len(set(axes)) < len(axes):
+            continue
+        direction = model.offsets[j] / model.lengths[j]
+        out[j] = all(abs(model.axis[j][AXIS_INDEX[a]] @ direction) < TWIST_COSINE for a in axes)
+    return out
+
+
+@dataclass
+class TwistChoice:
+    """Which of its two solutions each frame of a 2-dof solved bone takes (see `solve_local`).
+
+    The two solutions differ by half a turn of the bone about itself, which moves no joint,
+    so the joint positions cannot choose. By default the solution with the smaller largest
+    angle is taken; `flips[j]` (F,) marks the frames of bone j that take the other one. The
+    encoder, which knows the true local rotations (`reference[j]`, (F, 3, 3)), decodes with
+    the solution nearer to them and records the frames where that is not the default in
+    `flips`, so the decoder makes the same choice.
+    """
+
+    flips: dict[int, np.ndarray] = field(default_factory=dict)
+    reference: dict[int, np.ndarray] | None = None
+
+
+def true_twists(model: SkeletonModel, values: np.ndarray, layout) -> TwistChoice:
+    """The encoder's TwistChoice for a clip: the 2-dof solved bones' true local rotations,
+    from the clip's channel `values` (F, C) in `layout` (bones the clip leaves out: identity)."""
+    layout = model.layout(layout)
+    columns = layout.columns()
+    to_rad = np.pi / 180.0 if layout.angle_unit == "deg" else 1.0
+    reference = {}
+    for j in np.flatnonzero(solved_bones(model)):
+        axes = model.rotation_axes(j)
+        if len(axes) != 2:
+            continue
+        if model.names[j] in columns:
+            rotation_columns = [k for k, channel in enumerate(model.channels[j]) if channel[0] == "r"]
+            angles = values[:, columns[model.names[j]]][:, rotation_columns] * to_rad
+            reference[j] = euler_matrix(angles, axes)
+        else:
+            reference[j] = np.broadcast_to(np.eye(3), (len(values), 3, 3))
+    return TwistChoice(reference=reference)
+
+
+def flip_ranges(flips: dict[int, np.ndarray], model: SkeletonModel) -> dict[str, list[int]]:
+    """TwistChoice.flips as stored in an archive row: {bone name: [start, end, start, end, ...]},
+    the half-open frame ranges that take the other solution; bones without any left out."""
+    out = {}
+    for j, flags in flips.items():
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]])))
+        if len(edges):
+            out[model.names[j]] = edges.tolist()
+    return out
+
+
+def flips_from_ranges(ranges: dict[str, list[int]], model: SkeletonModel, n_frames: int) -> TwistChoice:
+    """The decoder's TwistChoice from `flip_ranges` output."""
+    flips = {}
+    for name, edges in ranges.items():
+        flags = np.zeros(n_frames, bool)
+        for start, end in zip(edges[::2], edges[1::2]):
+            flags[start:end] = True
+        flips[model.index[name]] = flags
+    return TwistChoice(flips)
+
+
+def _angle_about(axis: str, u: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Angle of the rotation about `axis` taking direction u towards t (row convention:
+    it turns the two other coordinates (b, c) as the complex number b + ic)."""
+    b, c = (AXIS_INDEX[axis] + 1) % 3, (AXIS_INDEX[axis] + 2) % 3
+    return np.arctan2(t[..., c], t[..., b]) - np.arctan2(u[..., c], u[..., b])
+
+
+def solve_local(model: SkeletonModel, j: int, parent_rotation: np.ndarray, bone: np.ndarray,
+                twist: TwistChoice) -> np.ndarray:
+    """Local rotations M (F, 3, 3) of solved bone j, from its parent's world rotation
+    (F, 3, 3) and its vector `bone` (F, 3): child minus parent position.
+
+    With R_j = C^T M C R_p (kinematics), the bone vector is V C^T M C R_p, so in the
+    joint's axis frame M must turn u = V C^T towards t = bone R_p^T C^T. One dof about
+    axis a: a closed-form angle. Two dofs M = R_a(s) R_b(r): R_b keeps the b coordinate,
+    so (u R_a(s))_b = t_b fixes s up to two solutions, and r follows as for one dof;
+    `twist` says which solution each frame takes.
+    """
+    c = model.axis[j]
+    u = model.offsets[j] @ c.T
+    u = u / np.linalg.norm(u)
+    t = (bone[:, None, :] @ np.swapaxes(parent_rotation, -1, -2) @ c.T)[:, 0]
+    t = t / np.maximum(np.linalg.norm(t, axis=-1, keepdims=True), 1e-300)
+    axes = model.rotation_axes(j)
+    if not axes:
+        return np.broadcast_to(np.eye(3), parent_rotation.shape)
+    if len(axes) == 1:
+        return axis_rotation(axes, _angle_about(axes, u, t))
+    first, second = axes
+    b, c_ = (AXIS_INDEX[first] + 1) % 3, (AXIS_INDEX[first] + 2) % 3
+    radius, phase = np.hypot(u[b], u[c_]), np.arctan2(u[c_], u[b])  # u_b + i u_c = radius e^(i phase)
+    if AXIS_INDEX[second] == b:  # radius cos(phase + s) = t_b
+        turn = np.arccos(np.clip(t[:, b] / radius, -1.0, 1.0))
+        turns = (turn, -turn)
+    else:  # radius sin(phase + s) = t_c
+        turn = np.arcsin(np.clip(t[:, c_] / radius, -1.0, 1.0))
+        turns = (turn, np.pi - turn)
+    angles = []
+    for turn in turns:
+        s = wrap(turn - phase)
+        angles.append((s, wrap(_angle_about(second, u @ axis_rotation(first, s), t))))  # (3,) @ (F, 3, 3)
+    (s0, r0), (s1, r1) = angles
+    other = np.maximum(np.abs(s1), np.abs(r1)) < np.maximum(np.abs(s0), np.abs(r0))  # the default
+    if twist.reference is not None:
+        solutions = [axis_rotation(first, s) @ axis_rotation(second, r) for s, r in angles]
+        nearness = [np.einsum("fij,fij->f", m, twist.reference[j]) for m in solutions]  # trace(M^T M_ref)
+        chosen = nearness[1] > nearness[0]
+        twist.flips[j] = chosen != other
+        other = chosen
+    elif j in twist.flips:
+        other = other != twist.flips[j]
+    return axis_rotation(first, np.where(other, s1, s0)) @ axis_rotation(second, np.where(other, r1, r0))
+
+
+def _stored_axes(model: SkeletonModel, axes_from_positions: bool) -> np.ndarray:
+    """(J - 1,) bool: bones 1..J-1 whose y axis is stored."""
+    return ~solved_bones(model)[1:] if axes_from_positions else np.ones(model.n_joints - 1, bool)
+
+
+def marker_width(model: SkeletonModel, with_root: bool, axes_from_positions: bool = False) -> int:
     """Columns of an encoding: positions, y axes, short-bone x axes, root axes."""
     positions = model.n_joints - (0 if with_root else 1)
+    y_axes = int(_stored_axes(model, axes_from_positions).sum())
     root_axes = 2 if model.root_proxy is None else 0
-    return 3 * (positions + (model.n_joints - 1) + int(model.short.sum()) + root_axes)
+    return 3 * (positions + y_axes + int(model.short.sum()) + root_axes)
 
 
-def encode_markers(model: SkeletonModel, pose: Pose, with_root: bool) -> np.ndarray:
+def encode_markers(model: SkeletonModel, pose: Pose, with_root: bool, axes_from_positions: bool = False) -> np.ndarray:
     """Pose -> (F, M) marker matrix; without root, the root position is dropped (it must be 0)."""
     n_frames = len(pose.positions)
     aligned = model.faux[None, 1:] @ pose.rotations[:, 1:]
     parts = [
         pose.positions[:, 0 if with_root else 1 :].reshape(n_frames, -1),
-        aligned[:, :, 1].reshape(n_frames, -1),
+        aligned[:, _stored_axes(model, axes_from_positions), 1].reshape(n_frames, -1),
         pose.rotations[:, np.flatnonzero(model.short), 0].reshape(n_frames, -1),
     ]
     if model.root_proxy is None:
@@ -49,20 +200,24 @@ def encode_markers(model: SkeletonModel, pose: Pose, with_root: bool) -> np.ndar
     return np.concatenate(parts, axis=1)
 
 
-def decode_markers(model: SkeletonModel, poses: np.ndarray, with_root: bool) -> Pose:
+def decode_markers(model: SkeletonModel, poses: np.ndarray, with_root: bool, axes_from_positions: bool = False,
+                   twist: TwistChoice | None = None) -> Pose:
     """(F, M) marker matrix -> Pose. Rotations are re-orthonormalised, so a lossy
-    matrix still gives proper rotations; positions are returned as stored."""
+    matrix still gives proper rotations; positions are returned as stored. `twist`:
+    the 2-dof solved bones' choices (default: `TwistChoice()`)."""
     poses = np.asarray(poses, dtype=np.float64)
-    width = marker_width(model, with_root)
+    width = marker_width(model, with_root, axes_from_positions)
     if poses.ndim != 2 or poses.shape[1] != width:
         raise ValueError(f"poses have shape {poses.shape}, this skeleton needs (frames, {width})")
     n_frames, n_joints = len(poses), model.n_joints
     first = 0 if with_root else 1
     short = np.flatnonzero(model.short)
-    cuts = np.cumsum([3 * (n_joints - first), 3 * (n_joints - 1), 3 * len(short)])
+    stored = _stored_axes(model, axes_from_positions)
+    cuts = np.cumsum([3 * (n_joints - first), 3 * int(stored.sum()), 3 * len(short)])
     positions = np.zeros((n_frames, n_joints, 3))
     positions[:, first:] = poses[:, : cuts[0]].reshape(n_frames, -1, 3)
-    y_axes = poses[:, cuts[0] : cuts[1]].reshape(n_frames, -1, 3)
+    y_axes = np.broadcast_to(model.faux[1:, 1], (n_frames, n_joints - 1, 3)).copy()  # solved bones: replaced below
+    y_axes[:, stored] = poses[:, cuts[0] : cuts[1]].reshape(n_frames, -1, 3)
     x_axes = positions[:, 1:] - positions[:, model.parents[1:]]
     x_axes[:, short - 1] = poses[:, cuts[1] : cuts[2]].reshape(n_frames, -1, 3)
     rotations = np.empty((n_frames, n_joints, 3, 3))
@@ -72,15 +227,25 @@ def decode_markers(model: SkeletonModel, poses: np.ndarray, with_root: bool) -> 
         rotations[:, 0] = orthonormal_frame(root_axes[:, 0], root_axes[:, 1])
     else:
         rotations[:, 0] = rotations[:, model.root_proxy]
+    twist = twist if twist is not None else TwistChoice()
+    for j in np.flatnonzero(~stored) + 1:  # parents come first, so each parent is final here
+        p = model.parents[j]
+        local = solve_local(model, j, rotations[:, p], positions[:, j] - positions[:, p], twist)
+        rotations[:, j] = model.axis[j].T @ local @ model.axis[j] @ rotations[:, p]
     return Pose(rotations, positions)
 
 
 class Positions:
     name = "positions"
 
+    def __init__(self, axes_from_positions: bool = False):
+        self.axes_from_positions = axes_from_positions
+
     def forward(self, model: SkeletonModel, motion) -> Encoded:
-        return Encoded(encode_markers(model, forward(model, motion.values, motion), with_root=True))
+        pose = forward(model, motion.values, motion)
+        return Encoded(encode_markers(model, pose, with_root=True, axes_from_positions=self.axes_from_positions))
 
     def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
-        pose = decode_markers(model, encoded.poses, with_root=True)
+        pose = decode_markers(model, encoded.poses, with_root=True, axes_from_positions=self.axes_from_positions,
+                              twist=encoded.params.get("twist"))
         return inverse(model, pose.rotations, pose.positions[:, 0], layout)

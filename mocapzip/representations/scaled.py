@@ -17,8 +17,11 @@ from .universal import UNIVERSAL_HEIGHT_CM, skeleton_height
 class Scaled:
     name = "scaled"
 
+    def __init__(self, axes_from_positions: bool = False):
+        self.aligned = Aligned(axes_from_positions)
+
     def forward(self, model: SkeletonModel, motion) -> Encoded:
-        encoded = Aligned().forward(model, motion)
+        encoded = self.aligned.forward(model, motion)
         scale = float(UNIVERSAL_HEIGHT_CM / skeleton_height(model))
         encoded.poses[:, : position_columns(model)] *= scale
         encoded.params["scale"] = scale
@@ -27,4 +30,4 @@ class Scaled:
     def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
         poses = np.array(encoded.poses, dtype=np.float64)
         poses[:, : position_columns(model)] /= encoded.params["scale"]
-        return Aligned().inverse(model, Encoded(poses, encoded.root), layout)
+        return self.aligned.inverse(model, Encoded(poses, encoded.root, encoded.params), layout)
