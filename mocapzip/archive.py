@@ -58,7 +58,7 @@ class Settings:
     split: list[float] | None = None  # forced R, P, T shares of error_cm
     dead_zone: float = 0.2
     basis_precision: float = 0.02  # basis rounding error per direction, as a share of error_cm
-    axis_weight_cm: float = 5.0  # weight of bone axis vectors against joint positions (clip.pose_weights)
+    axis_weight_cm: float = 12.0  # weight of bone axis vectors against positions (clip.pose_weights; solved_bones.py)
     fps: float = 120.0
     lossless: bool = False
     segment: bool = False  # cut long takes at PPCA change points, each segment coded on its own
