@@ -35,7 +35,7 @@ from .search import largest_step, smallest_count
 YAW_RADIUS_CM = 50.0  # a typical joint's distance from the root: yaw error x this = cm
 MEAN_STEP_CM = 1e-3  # the class mean is kept finely: its error repeats on every frame
 # root track step / pose step; `python benchmarks/root_step.py` (CMU subjects 02, 07, 13 and 35
-# at 1 cm, B/frame): 1.0: 1.955, 0.5: 1.810, 0.25: 1.768, 0.2: 1.768, 0.1: 1.798
+# at 1 cm, B/frame, format 4): 1.0: 1.625, 0.5: 1.502, 0.25: 1.457, 0.2: 1.452, 0.1: 1.463
 ROOT_STEP_RATIO = 0.2
 
 
