@@ -328,12 +328,12 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
                                c[1], transform, dz, unit.coded_frames)
                    for payload, c, unit in zip(payloads, coded, units)]
         joined = _joined(decoded, cores, clip.motion.n_frames, OVERLAP)
-        mean_err, max_err = clip.error(*joined, final=True)
+        (mean_err, max_err), twist_flips = clip.final_check(*joined)
         if mean_err <= target:
             break
         target *= 0.9
-        codes, errors = zip(*(code_clip(unit_clip, c[1], transform, target, dz, settings.split)
-                              for unit_clip, c in zip(unit_clips, coded)))
+        codes, errors, _ = zip(*(code_clip(unit_clip, c[1], transform, target, dz, settings.split)
+                                 for unit_clip, c in zip(unit_clips, coded)))
         payloads = [code.payload(coder) for code in codes]
     else:
         raise RuntimeError(f"{row['path']}: segments joined to {mean_err:.4f} cm, above {settings.error_cm} cm")
@@ -344,7 +344,6 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
         segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
                          "error_cm": seg_mean, "max_error_cm": seg_max})
     row.update(segments=segments, segment_overlap=OVERLAP, error_cm=mean_err, max_error_cm=max_err)
-    twist_flips = clip.twist_flips(*joined)
     if twist_flips:
         row["twist_flips"] = twist_flips
     row["class"] = segments[0]["class"]

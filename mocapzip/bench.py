@@ -517,10 +517,9 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
             warnings.simplefilter("ignore")
             loaded = load_clips([clip.source], task["representation"], axes_from_positions=axes_from_positions)[0]
         basis = ClassBasis(np.zeros(loaded.poses.shape[1]), np.eye(loaded.poses.shape[1]), np.ones(loaded.poses.shape[1]))
-        coded, _ = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
+        coded, _, twist_flips = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
         payload = coded.payload()
         n_frames = loaded.motion.n_frames
-        twist_flips = loaded.twist_flips(*reconstruct(coded, basis, transform, dead_zone, n_frames))  # as in a row
         middle = time.perf_counter()
         model, layout = loaded.model, loaded.layout
         poses, root = reconstruct(CodedClip.from_payload(payload), basis, transform, dead_zone, n_frames)

@@ -66,30 +66,29 @@ class LoadedClip:
         """(mean, max) joint-position error in cm of decoded `poses`/`root` for the original `frames`.
 
         `final` rounds the channels as the AMC writer will (the source's number style), as on disk.
-        Solved bones take the twist nearer the original (`twist_flips` tells the decoder which).
+        Solved bones take the twist nearer the original (`final_check` tells the decoder which).
         """
-        values = self._channels(poses, root, frames)[0]
+        return self._score(poses, root, frames, final)[0]
+
+    def final_check(self, poses: np.ndarray, root: np.ndarray | None) -> tuple[tuple[float, float], dict]:
+        """`error` on every frame as on disk, and what the archive row stores so that decoding
+        `poses`/`root` gives the channels scored: the frames where a 2-dof solved bone takes its
+        other solution (`twist_flips`: `positions.TwistChoice`, `flip_ranges`; empty without
+        solved bones). One decode for both."""
+        errors, twist = self._score(poses, root, slice(None), final=True)
+        return errors, ({} if twist is None else flip_ranges(twist.flips, self.model))
+
+    def _score(self, poses: np.ndarray, root: np.ndarray | None, frames, final: bool):
+        """((mean, max) error, the TwistChoice made) of decoded weighted `poses` for the original
+        `frames`, twists chosen towards the original's (None without solved bones)."""
+        twist = true_twists(self.model, self.motion.values[frames], self.layout) if self.axes_from_positions else None
+        values = channels_from(self.model, self.representation_name, self.layout, poses / self.weights, root,
+                               {**self.encoded.params, "twist": twist}, self.axes_from_positions)
         if final:
             values = round_as_written(values, self.motion.style)
         decoded = forward(self.model, values, self.layout).positions
         distances = joint_distances(self.positions[frames], decoded)
-        return float(distances.mean()), float(distances.max())
-
-    def twist_flips(self, poses: np.ndarray, root: np.ndarray | None) -> dict[str, list[int]]:
-        """What the archive row stores so that decoding `poses`/`root` (all frames) gives the
-        channels `error` scored: the frames where a 2-dof solved bone takes its other
-        solution (`positions.TwistChoice`, `flip_ranges`). Empty without solved bones."""
-        if not self.axes_from_positions:
-            return {}
-        return flip_ranges(self._channels(poses, root, slice(None))[1].flips, self.model)
-
-    def _channels(self, poses: np.ndarray, root: np.ndarray | None, frames):
-        """Channels decoded from weighted `poses` of the original `frames`, twists chosen towards
-        the original's, and the TwistChoice made."""
-        twist = true_twists(self.model, self.motion.values[frames], self.layout) if self.axes_from_positions else None
-        values = channels_from(self.model, self.representation_name, self.layout, poses / self.weights, root,
-                               {**self.encoded.params, "twist": twist}, self.axes_from_positions)
-        return values, twist
+        return (float(distances.mean()), float(distances.max())), twist
 
 
 def round_as_written(values: np.ndarray, style: AmcStyle) -> np.ndarray:

@@ -251,7 +251,7 @@ _SHARED: dict = {}  # what forked workers read (clips are large: they are inheri
 def encode_class(clips, transform, settings, jobs: int = 1, accumulator: CovarianceAccumulator | None = None):
     """Fit the class basis and code each clip within settings.error_cm; return (basis, payloads, errors,
     twists): each clip's stream (`CodedClip.payload`), achieved (mean, max) error and twist flips
-    (`LoadedClip.twist_flips`, for its row).
+    (`LoadedClip.final_check`, for its row).
 
     The budget split is a search: for each candidate PCA share, the class keeps the fewest
     components that bring every clip's PCA-only error under that share, then each clip gets
@@ -337,8 +337,8 @@ def _code_clip(index: int) -> list[tuple[bytes, tuple[float, float], dict]]:
     settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
     out = []
     for basis in _SHARED["bases"]:
-        coded, error = code_clip(clip, basis, transform, settings.error_cm, settings.dead_zone, settings.split)
-        twists = clip.twist_flips(*reconstruct(coded, basis, transform, settings.dead_zone, clip.motion.n_frames))
+        coded, error, twists = code_clip(clip, basis, transform, settings.error_cm, settings.dead_zone,
+                                         settings.split)
         out.append((coded.payload(interim_coder(settings.coefficient_coder)), error, twists))
     return out
 
@@ -353,7 +353,8 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
     band (widest first) the largest step within `target` is found and the coded size
     measured; the search stops when a band cannot meet the target or sizes stop falling.
 
-    Returns the coded clip and its achieved (mean, max) error. `split` (R, P, T shares)
+    Returns the coded clip, its achieved (mean, max) error and its twist flips (for its row,
+    `LoadedClip.final_check`). `split` (R, P, T shares)
     forces the root track's share of the budget and keeps the whole band (the thesis's
     experiments); otherwise the root step is ROOT_STEP_RATIO of the pose step.
     """
@@ -390,11 +391,11 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
                                                lambda step, band: error(step, step * ROOT_STEP_RATIO, band), target)
         root_step = pose_step * ROOT_STEP_RATIO
     coded = code(pose_step, root_step, band)
-    achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), final=True)
+    achieved, twists = clip.final_check(*reconstruct(coded, basis, transform, dz, n))
     while achieved[0] > target and coded.pose_step > STEP_RANGE[0]:  # the sampled search missed: tighten
         coded = code(coded.pose_step * 0.9, coded.root_step * 0.9, band)
-        achieved = clip.error(*reconstruct(coded, basis, transform, dz, n), final=True)
-    return coded, achieved
+        achieved, twists = clip.final_check(*reconstruct(coded, basis, transform, dz, n))
+    return coded, achieved, twists
 
 
 def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
