@@ -19,17 +19,22 @@ from __future__ import annotations
 import io
 import math
 import multiprocessing
+import os
 import struct
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
-from .codec.coefficients import Priors, decode_matrices, encode_matrices, matrix_shapes
+from .codec.coefficients import Priors, check_matrix_shape, decode_matrices, encode_matrices, matrix_shapes
 from .codec.entropy import decode_ints, encode_ints, encode_sparse
 from .codec.pca import CovarianceAccumulator, PcaBasis
 from .codec.quantise import UniformQuantiser
+from .formats.errors import MocapFormatError
+from .limits import MAX_COEFFICIENTS_PER_MATRIX
 from .search import largest_step, smallest_count
 
 YAW_RADIUS_CM = 50.0  # a typical joint's distance from the root: yaw error x this = cm
@@ -87,7 +92,9 @@ class ClassBasis:
 
     @classmethod
     def decode(cls, blob: bytes, coder: str = "context") -> "ClassBasis":
-        m, q = struct.unpack_from("<II", blob, 0)
+        """Inverse of `encode`; the declared m x q is checked against the limits before anything is allocated."""
+        m, q = _unpack("<II", blob, 0)
+        check_matrix_shape(m, q)
         pos = 8
         steps = np.frombuffer(blob, "<f4", q, pos)
         pos += 4 * q
@@ -103,9 +110,9 @@ class ClassBasis:
                 parts = [parts[0], _undo_references(parts[2], parts[1].ravel())]
         else:
             parts = []
-            for _ in range(2):
-                (n,) = struct.unpack_from("<I", blob, pos)
-                parts.append(decode_ints(blob[pos + 4 : pos + 4 + n]))
+            for values in (m, m * q):
+                (n,) = _unpack("<I", blob, pos)
+                parts.append(decode_ints(blob[pos + 4 : pos + 4 + n], values))
                 pos += 4 + n
             if pos != len(blob):
                 raise ValueError("class basis has trailing bytes")
@@ -201,24 +208,43 @@ class CodedClip:
     @classmethod
     def from_payload(cls, blob: bytes, coder: str = "context", shapes=None,
                      priors: Priors | None = None) -> "CodedClip":
-        """`shapes`: the pose and root matrices' shapes when the caller knows them (checked first)."""
+        """`shapes`: the pose and root matrices' shapes when the caller knows them (checked first).
+
+        The payload may come from anyone: its matrix count and shapes are checked (against
+        `shapes` and the limits, `check_matrix_shape`) before anything is allocated for them.
+        """
         priors = _priors_for(coder, priors)
         if coder != "zstd":
-            pose_step, root_step = struct.unpack_from("<ff", blob, 0)
+            pose_step, root_step = _unpack("<ff", blob, 0)
+            count = len(matrix_shapes(blob[8:]))
+        else:
+            pose_step, root_step, count = _unpack("<ddB", blob, 0)
+        if not 1 <= count <= 2:
+            raise ValueError(f"clip payload holds {count} matrices")
+        if coder != "zstd":
             arrays = decode_matrices(blob[8:], shapes, priors)
         else:
-            pose_step, root_step, n = struct.unpack_from("<ddB", blob, 0)
-            pos = 17
-            arrays = []
-            for _ in range(n):
-                (size,) = struct.unpack_from("<I", blob, pos)
-                arrays.append(decode_ints(blob[pos + 4 : pos + 4 + size]))
+            pos, arrays = 17, []
+            for _ in range(count):
+                (size,) = _unpack("<I", blob, pos)
+                arrays.append(decode_ints(blob[pos + 4 : pos + 4 + size], MAX_COEFFICIENTS_PER_MATRIX))
                 pos += 4 + size
+                if arrays[-1].ndim != 2:
+                    raise ValueError(f"clip payload holds a matrix of shape {arrays[-1].shape}")
+                check_matrix_shape(*arrays[-1].shape)
             if pos != len(blob):
                 raise ValueError("clip payload has trailing bytes")
-        if not 1 <= len(arrays) <= 2:
-            raise ValueError(f"clip payload holds {len(arrays)} matrices")
+            if shapes is not None and [a.shape for a in arrays] != [tuple(s) for s in shapes][:count]:
+                raise ValueError(f"clip matrices of shapes {[a.shape for a in arrays]}, expected {list(shapes)}")
         return cls(pose_step, arrays[0], root_step, arrays[1] if len(arrays) > 1 else None)
+
+
+def _unpack(layout: str, blob: bytes, offset: int) -> tuple:
+    """struct.unpack_from that reports a stream cut short as ValueError, which callers catch."""
+    try:
+        return struct.unpack_from(layout, blob, offset)
+    except struct.error:
+        raise ValueError(f"stream cut short: {struct.calcsize(layout)} bytes needed at byte {offset}") from None
 
 
 def interim_coder(coder: str) -> str:
@@ -244,6 +270,10 @@ BANDS = (1.0, 0.2, 0.16, 0.13, 0.11, 0.095, 0.08, 0.07, 0.06, 0.05, 0.043, 0.036
 STEP_GUESS = 3.0  # typical step / target (CMU, 1 cm): where the step search starts
 MAX_TRUNCATION_SHARE = 0.85  # a band whose truncation alone costs more of the budget is not tried
 BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet the target
+
+class TargetError(MocapFormatError):
+    """No coding of a clip meets the error target: the target is below the input's own precision."""
+
 
 _SHARED: dict = {}  # what forked workers read (clips are large: they are inherited, not pickled)
 
@@ -292,8 +322,10 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
             for q in pending:
                 precision[q] /= 4  # the rounded basis alone costs too much error: store it finer
         else:
-            worst = max(e[0] for q in pending for e in codings[q][2])
-            raise RuntimeError(f"no clip coding met {target} cm; worst {worst:.3f} cm")
+            worst, index = max((e[0], i) for q in pending for i, e in enumerate(codings[q][2]))
+            raise TargetError(f"no coding met {target:g} cm (this clip reached {worst:.4f} cm): the target is "
+                              "finer than the precision of the clip's numbers allows; use a larger -e, or --lossless",
+                              clips[index].source.amc)
     finally:
         _SHARED.clear()
     best = None
@@ -309,8 +341,21 @@ def _parallel(function, items, jobs: int) -> list:
     items = list(items)
     if jobs <= 1 or len(items) < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return [function(i) for i in items]
-    with ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork")) as pool:
+    with ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork"),
+                             initializer=_exit_with_parent, initargs=(os.getpid(),)) as pool:
         return list(pool.map(function, items))
+
+
+def _exit_with_parent(parent: int) -> None:
+    """Worker start-up: a watcher thread ends the worker once its parent is gone. A parent
+    killed by SIGKILL runs no clean-up, and its workers would otherwise wait for work forever."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 def _components_for_shares(index: int) -> list[int]:

@@ -28,11 +28,13 @@ must come back to its initial value after the last step, and all words and
 bits must be consumed; otherwise decoding raises ValueError.
 """
 
+import math
 import zlib
 
 import numpy as np
 
 from mocapzip.codec import entropy
+from mocapzip.limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 
 __all__ = ["encode_residuals", "decode_residuals"]
 
@@ -54,6 +56,13 @@ _INCREMENT = 32  # count added per coded bucket (initial count 1: a weak flat pr
 _HALVE_AT = 1 << 22  # a context's counts are halved when their total exceeds this
 _SEGMENT_STEPS = 1024  # time segments coded side by side are at least this long ...
 _MAX_SEGMENTS = 16  # ... and at most this many
+# Decoding a bucket shrinks a lane's state x >= 2**16 by at least (_N_BUCKETS - 1) * (x >> 15)
+# >= x * 2**-10 (no bucket has more than _TOTAL - 64 of the frequency), so from one refill to
+# the next (or from the first state, or to the last) a lane decodes at most this many buckets,
+# and a stream holds at most this many values per word and per lane (11,351).
+_MAX_BUCKETS_PER_WORD = 1 + math.floor(
+    _WORD_BITS * math.log(2) / -math.log1p(-(_N_BUCKETS - 1) / (2 * _TOTAL))
+)
 
 
 def encode_residuals(matrix) -> bytes:
@@ -81,7 +90,14 @@ def encode_residuals(matrix) -> bytes:
 
 
 def decode_residuals(blob: bytes, rows: int, steps: int) -> np.ndarray:
-    """Inverse of `encode_residuals` for a matrix of the given shape."""
+    """Inverse of `encode_residuals` for a matrix of the given shape.
+
+    The shape is checked against the limits (rows are channels, steps frames) and against
+    what the stream can hold before anything is allocated or decoded.
+    """
+    entropy.check_size(rows, MAX_VALUES_PER_FRAME, "residual rows")
+    entropy.check_size(steps, MAX_FRAMES_PER_CLIP, "residual steps")
+    entropy.check_size(rows * steps, MAX_VALUES_PER_CLIP, "residuals")
     blob = bytes(blob)
     if len(blob) < 4 or zlib.crc32(blob[4:]) != int.from_bytes(blob[:4], "little"):
         raise ValueError("CRC mismatch in the residual stream")
@@ -94,6 +110,8 @@ def decode_residuals(blob: bytes, rows: int, steps: int) -> np.ndarray:
     layout = _Layout(rows, steps)
     if len(parts[1]) != 4 * layout.n_lanes or len(parts[2]) % 2:
         raise ValueError("residual stream does not match the matrix shape")
+    if rows * steps > _MAX_BUCKETS_PER_WORD * (len(parts[2]) // 2 + layout.n_lanes):
+        raise ValueError(f"a residual stream of {len(blob)} bytes cannot hold {rows} x {steps} values")
     states = np.frombuffer(parts[1], "<u4").astype(np.int64)
     words = np.frombuffer(parts[2], "<u2").astype(np.int64)
     buckets = layout.from_lanes(_rans_decode(states, words, layout, scheme))
@@ -245,7 +263,7 @@ def _rans_decode(state, words, layout, scheme):
     model = _Model(layout.n_lanes, scheme)
     buckets = np.zeros((layout.length, layout.n_lanes), np.int64)
     position = 0
-    for step in range(layout.length):
+    for step in range(layout.length if layout.n_lanes else 0):  # no lanes (no rows): nothing to decode
         active = layout.active(step)
         contexts = model.contexts(active)
         lanes = state[:active]

@@ -38,10 +38,11 @@ CMU set.
 
 import numpy as np
 
-from mocapzip.codec.entropy import ByteReader, write_varint
+from mocapzip.codec.entropy import ByteReader, check_size, write_varint
 from mocapzip.codec.rangecoder import Decoder, Encoder, new_models
+from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_FRAME
 
-__all__ = ["encode_matrices", "decode_matrices", "matrix_shapes", "Priors"]
+__all__ = ["encode_matrices", "decode_matrices", "matrix_shapes", "check_matrix_shape", "Priors"]
 
 _VERSION = 1  # models start at 1/2
 _PRIMED_VERSION = 2  # models start from the archive's priors
@@ -51,7 +52,6 @@ _PRIORS_VERSION = 1
 _PRIOR_STEP_BITS = 3  # priors are stored to 8 bits: probability >> 3
 _NEIGHBOUR_CONTEXTS = 9  # bit length of the weighted neighbour magnitude, capped
 _DISTANCE_CONTEXTS = 6  # bit length of the distance to the column's end, capped
-_MAX_VALUES = 1 << 28  # values per matrix a decoder accepts (a 2-million-frame clip of 134 curves)
 _LARGEST = 1 << 62  # magnitudes stay below this, as UniformQuantiser's do
 _MAX_LENGTH = 62  # bit length of the largest magnitude
 _LENGTH_CONTEXTS = 16  # unary steps of the bit length with a model of their own
@@ -163,8 +163,6 @@ def decode_matrices(blob: bytes, shapes=None, priors: Priors | None = None) -> l
         raise ValueError("coefficient stream coded with priors, but none were given")
     if shapes is not None and stored != [tuple(shape) for shape in shapes][: len(stored)]:
         raise ValueError(f"coefficient matrices of shapes {stored}, expected {list(shapes)}")
-    if any(rows * columns > _MAX_VALUES for rows, columns in stored):
-        raise ValueError(f"coefficient matrix shapes {stored} exceed {_MAX_VALUES} values")
     payload = reader.take(reader.remaining())
     decoder = Decoder(payload) if version == _VERSION else Decoder(payload, _PRIMED_SHIFT)
     matrices = [_decode_matrix(decoder, rows, columns, _Models() if version == _VERSION else priors.models(slot))
@@ -178,11 +176,25 @@ def matrix_shapes(blob: bytes) -> list[tuple[int, int]]:
     return _read_header(ByteReader(bytes(blob)))[1]
 
 
+def check_matrix_shape(rows: int, columns: int) -> None:
+    """Refuse a declared matrix beyond the limits before anything is allocated or decoded for it.
+
+    Rows are a clip's frames (or a basis's pose values), columns its curves; a stream of a few
+    bytes can declare any shape, since all-zero columns cost almost nothing to code.
+    """
+    check_size(rows, MAX_FRAMES_PER_CLIP, "matrix rows")
+    check_size(columns, MAX_VALUES_PER_FRAME, "matrix columns")
+    check_size(rows * columns, MAX_COEFFICIENTS_PER_MATRIX, "matrix values")
+
+
 def _read_header(reader: ByteReader) -> tuple[int, list[tuple[int, int]]]:
     version = reader.byte()
     if version not in (_VERSION, _PRIMED_VERSION):
         raise ValueError("not a coefficient stream of a known version")
-    return version, [(reader.varint(), reader.varint()) for _ in range(reader.byte())]
+    shapes = [(reader.varint(), reader.varint()) for _ in range(reader.byte())]
+    for shape in shapes:
+        check_matrix_shape(*shape)
+    return version, shapes
 
 
 def _context(current: list, previous: list, before: list, row: int) -> int:

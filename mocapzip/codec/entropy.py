@@ -38,6 +38,11 @@ Integrity: every blob is a zstd frame with a content checksum (plus a CRC32
 over the verbatim bits of the bit-length layout).  A corrupted, truncated or
 padded blob raises `ValueError`; decoding never returns wrong data silently.
 
+Untrusted input: a blob may come from anyone, so every size it declares is
+checked before it is allocated or looped over (`check_size`), and a zstd
+frame is never unpacked past a limit its caller states (`decode_bytes`,
+`decode_ints`): a few kilobytes of zstd can unpack to gigabytes.
+
 The zstd contexts are created once per process and reused (creating a level
 19 context per call costs more than compressing a small array).  They are
 not thread safe, so each use holds a lock.
@@ -50,6 +55,8 @@ import zlib
 import numpy as np
 import zstandard
 
+from mocapzip.limits import MAX_DECODED_STREAM_BYTES, MAX_VALUES_PER_CLIP
+
 __all__ = [
     "encode_ints",
     "encode_sparse",
@@ -61,6 +68,7 @@ __all__ = [
     "unpack_blobs",
     "write_varint",
     "ByteReader",
+    "check_size",
 ]
 
 _COMPRESSOR = zstandard.ZstdCompressor(level=19, write_checksum=True)
@@ -81,6 +89,10 @@ _BIT_LENGTH = 2
 
 _ORDERS = ("C", "F")
 _POWERS_OF_TWO = np.uint64(1) << np.arange(64, dtype=np.uint64)
+_MAX_HEADER = 4 + 255 * 10  # layout, dtype, order and dimension count, then up to 255 ten-byte varints
+# Compressed bytes unpacked at a time: a 4-byte block that repeats one byte unpacks to up to
+# 128 KiB, so a step yields at most about 32 MiB, and a frame is refused soon after its limit.
+_UNPACK_STEP = 1 << 10
 
 
 # --------------------------------------------------------------------- bytes
@@ -92,9 +104,10 @@ def encode_bytes(data: bytes) -> bytes:
         return _COMPRESSOR.compress(bytes(data))
 
 
-def decode_bytes(blob: bytes) -> bytes:
-    """Inverse of `encode_bytes`; raises ValueError if `blob` is not exactly one intact frame."""
-    data, rest = _decompress_frame(blob)
+def decode_bytes(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES) -> bytes:
+    """Inverse of `encode_bytes`; raises ValueError if `blob` is not exactly one intact frame
+    or unpacks to more than `limit` bytes."""
+    data, rest = _decompress_frame(blob, limit)
     if rest:
         raise ValueError(f"{len(rest)} unexpected bytes after the zstd frame")
     return data
@@ -119,7 +132,8 @@ def pack_blobs(blobs) -> bytes:
 def unpack_blobs(data: bytes) -> list:
     """Inverse of `pack_blobs`; raises ValueError on inconsistent lengths."""
     reader = ByteReader(bytes(data))
-    lengths = [reader.varint() for _ in range(reader.varint())]
+    count = check_size(reader.varint(), reader.remaining(), "blobs")  # a length takes at least a byte
+    lengths = [reader.varint() for _ in range(count)]
     blobs = [reader.take(length) for length in lengths]
     if not reader.at_end():
         raise ValueError(f"{reader.remaining()} unexpected bytes after the last blob")
@@ -149,9 +163,11 @@ def encode_sparse(matrix) -> bytes:
     return min(candidates, key=len)
 
 
-def decode_ints(blob: bytes) -> np.ndarray:
-    """Decode the output of `encode_ints` or `encode_sparse`."""
-    payload, rest = _decompress_frame(blob)
+def decode_ints(blob: bytes, max_values: int = MAX_VALUES_PER_CLIP) -> np.ndarray:
+    """Decode the output of `encode_ints` or `encode_sparse`; an array declaring more than
+    `max_values` values is refused before it is unpacked or allocated."""
+    # The largest layout (bitmap) takes a bit, eight bytes per value and a plane width byte.
+    payload, rest = _decompress_frame(blob, _MAX_HEADER + 1 + (max_values + 7) // 8 + 8 * max_values)
     reader = ByteReader(payload)
     layout = reader.byte()
     dtype_index = reader.byte()
@@ -160,8 +176,9 @@ def decode_ints(blob: bytes) -> np.ndarray:
     order_index = reader.byte()
     if order_index >= len(_ORDERS):
         raise ValueError(f"unknown array order code {order_index}")
-    shape = tuple(reader.varint() for _ in range(reader.byte()))
-    count = math.prod(shape)
+    n_dims = reader.byte()
+    shape = tuple(check_size(reader.varint(), max_values, "array values along one axis") for _ in range(n_dims))
+    count = check_size(math.prod(shape), max_values, "array values")
 
     if layout == _DENSE:
         codes = _read_planes(reader, count)
@@ -248,17 +265,33 @@ def join_leading_bits(lengths: np.ndarray, verbatim: bytes) -> np.ndarray:
 # ------------------------------------------------------------- internals
 
 
-def _decompress_frame(blob: bytes):
-    """Decompress the zstd frame at the start of `blob`; return (data, bytes after the frame)."""
-    with _DECOMPRESSOR_LOCK:
-        stream = _DECOMPRESSOR.decompressobj()
-        try:
-            data = stream.decompress(bytes(blob))
-        except zstandard.ZstdError as error:
-            raise ValueError(f"corrupt zstd data: {error}") from None
+def _decompress_frame(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES):
+    """Decompress the zstd frame at the start of `blob`; return (data, bytes after the frame).
+
+    A few kilobytes of zstd can unpack to gigabytes: the size the frame header declares is
+    checked against `limit` first, then the frame is unpacked a step at a time and refused
+    as soon as its output passes `limit`, so it never holds much more than that.
+    """
+    blob = bytes(blob)
+    view = memoryview(blob)
+    parts, size, position = [], 0, 0
+    try:
+        declared = zstandard.frame_content_size(blob)  # -1: not declared
+        if declared > limit:
+            raise ValueError(f"zstd stream unpacks to {declared} bytes, more than the limit of {limit}")
+        with _DECOMPRESSOR_LOCK:
+            stream = _DECOMPRESSOR.decompressobj()
+            while not stream.eof and position < len(blob):
+                parts.append(stream.decompress(view[position : position + _UNPACK_STEP]))
+                position += _UNPACK_STEP
+                size += len(parts[-1])
+                if size > limit:
+                    raise ValueError(f"zstd stream unpacks to more than the limit of {limit} bytes")
+    except zstandard.ZstdError as error:
+        raise ValueError(f"corrupt zstd data: {error}") from None
     if not stream.eof:
         raise ValueError("truncated zstd data: the frame ends early")
-    return data, stream.unused_data
+    return b"".join(parts), stream.unused_data + blob[position:]
 
 
 def _as_int_array(array) -> np.ndarray:
@@ -325,6 +358,14 @@ def _read_bits(data: bytes, count: int) -> np.ndarray:
     if np.any(bits[count:]):
         raise ValueError("padding bits are not zero")
     return bits[:count]
+
+
+def check_size(size: int, limit: int, what: str) -> int:
+    """`size` if 0 <= size <= limit: a size read from a stream is checked against what the stream
+    or the limits allow before anything is allocated or looped over for it."""
+    if not 0 <= size <= limit:
+        raise ValueError(f"stream declares {size} {what} (at most {limit})")
+    return size
 
 
 def write_varint(out: bytearray, value: int) -> None:

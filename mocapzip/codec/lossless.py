@@ -60,6 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapzip.codec import ans, entropy
+from mocapzip.limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 
 __all__ = ["encode_channels", "decode_channels"]
 
@@ -74,6 +75,7 @@ _DECIMAL = 2  # parameters: sig_digits (0 = fixed grid), coarse_exponent, predic
 _MAX_SIG_DIGITS = 15  # 10**15 < 2**53, so a significand converts to float64 exactly
 _MAX_ORDER = 3
 _MAX_COARSE = 2**50  # keeps order-3 differences (at most 8x larger) far inside int64
+_MAX_COARSE_EXPONENT = 1 << 10  # far beyond any float64's decimal exponent (about -340 to 323)
 _COARSE_CANDIDATES = 2  # coarse units tried: the top decade and one below (lower ones never won)
 _EXACT_POWER = 22  # 10**k is exact in float64 for k <= 22
 _POW10_INT = 10 ** np.arange(19, dtype=np.int64)
@@ -141,16 +143,23 @@ def encode_channels(values) -> bytes:
 
 
 def decode_channels(blob: bytes) -> np.ndarray:
-    """Inverse of `encode_channels`; raises ValueError on corrupt input."""
+    """Inverse of `encode_channels`; raises ValueError on corrupt input.
+
+    The blob may come from anyone: its frame and channel counts are checked against the
+    limits (mocapzip/limits.py), and every section against them, before anything is
+    allocated or decoded.
+    """
     sections = entropy.unpack_blobs(blob)
     if len(sections) < 5:
         raise ValueError(f"expected at least 5 sections, got {len(sections)}")
-    meta = entropy.decode_ints(sections[0])
+    meta = _int64s(sections[0], 3 + 4 * MAX_VALUES_PER_FRAME)
     if meta.ndim != 1 or meta.size < 3 or meta[0] not in _KNOWN_VERSIONS:
         raise ValueError("not a lossless channel blob of a known version")
     version = int(meta[0])
-    n_frames, n_channels = int(meta[1]), int(meta[2])
-    if n_frames < 0 or n_channels < 0 or meta.size != 3 + 4 * n_channels:
+    n_frames = entropy.check_size(int(meta[1]), MAX_FRAMES_PER_CLIP, "frames")
+    n_channels = entropy.check_size(int(meta[2]), MAX_VALUES_PER_FRAME, "channels")
+    n_values = entropy.check_size(n_frames * n_channels, MAX_VALUES_PER_CLIP, "values")
+    if meta.size != 3 + 4 * n_channels:
         raise ValueError("channel table does not match the channel count")
     table = meta[3:].reshape(n_channels, 4)
     modes = table[:, 0]
@@ -158,16 +167,15 @@ def decode_channels(blob: bytes) -> np.ndarray:
         raise ValueError("unknown channel mode in the channel table")
     decimal_columns = np.flatnonzero(modes == _DECIMAL)
     sig_digits, coarse_exponent, order = table[decimal_columns, 1:].T
-    if np.any((sig_digits < 0) | (sig_digits > _MAX_SIG_DIGITS)) or np.any(
-        (order < 0) | (order > _MAX_ORDER)
-    ):
+    if (np.any((sig_digits < 0) | (sig_digits > _MAX_SIG_DIGITS)) or np.any((order < 0) | (order > _MAX_ORDER))
+            or np.any((coarse_exponent < -_MAX_COARSE_EXPONENT) | (coarse_exponent > _MAX_COARSE_EXPONENT))):
         raise ValueError("invalid decimal channel parameters")
     shape = (len(decimal_columns), n_frames)
 
     first_digit_section = 5
     links = [None] * shape[0]
     if version == 1:
-        residuals = entropy.decode_ints(sections[1])
+        residuals = _int64s(sections[1], n_values)
         if residuals.shape != (shape[0] * shape[1],):
             raise ValueError(f"{residuals.size} residuals, expected {shape[0] * shape[1]}")
         residuals = residuals.reshape(shape)
@@ -175,16 +183,15 @@ def decode_channels(blob: bytes) -> np.ndarray:
         residuals = _decode_residuals(sections[1], shape)
         if len(sections) < 6:
             raise ValueError("missing predictor section")
-        links = _unpack_links(entropy.decode_ints(sections[5]), shape[0])
+        links = _unpack_links(_int64s(sections[5], shape[0] * (2 + 2 * _MAX_PARENTS)), shape[0])
         first_digit_section = 6
     coarse = _decode_coarse(residuals, order, links)
 
-    exception_steps = entropy.decode_ints(sections[2])
+    exception_steps = _int64s(sections[2], n_values)
     exception_positions = np.cumsum(exception_steps)
-    exception_bits = entropy.decode_ints(sections[3])
-    in_range = exception_positions.size == 0 or (
-        exception_positions[0] >= 0 and exception_positions[-1] < coarse.size
-    )
+    exception_bits = _int64s(sections[3], n_values)
+    # Every position, not just the ends: huge steps could wrap around int64.
+    in_range = np.all((exception_positions >= 0) & (exception_positions < coarse.size))
     increasing = np.all(exception_steps[1:] > 0)
     if exception_positions.size != exception_bits.size or not (in_range and increasing):
         raise ValueError("exception positions are inconsistent")
@@ -192,7 +199,7 @@ def decode_channels(blob: bytes) -> np.ndarray:
     exceptions.flat[exception_positions] = True
 
     zero_slots = (coarse == 0) & ~exceptions
-    sign_bits = np.unpackbits(np.frombuffer(entropy.decode_bytes(sections[4]), np.uint8))
+    sign_bits = np.unpackbits(np.frombuffer(entropy.decode_bytes(sections[4], (n_values + 7) // 8), np.uint8))
     n_zero_slots = int(zero_slots.sum())
     if sign_bits.size != (n_zero_slots + 7) // 8 * 8 or np.any(sign_bits[n_zero_slots:]):
         raise ValueError("zero sign bits do not match the zero values")
@@ -204,16 +211,17 @@ def decode_channels(blob: bytes) -> np.ndarray:
     next_section = first_digit_section
     for n in range(1, n_below.max(initial=0) + 1):
         group = n_below == n
-        if not group.any():
+        count = int(group.sum())
+        if not count:
             continue
         if next_section >= len(sections):
             raise ValueError("missing digit section")
         if version == 1:
-            group_digits = entropy.decode_ints(sections[next_section])
+            group_digits = entropy.decode_ints(sections[next_section], count)
         else:
-            group_digits = _decode_digits(sections[next_section], n, int(group.sum()))
+            group_digits = _decode_digits(sections[next_section], n, count)
         next_section += 1
-        if group_digits.shape != (group.sum(),):
+        if group_digits.shape != (count,):
             raise ValueError(f"digit section for n={n} has the wrong length")
         digits[group] = group_digits
     if next_section != len(sections):
@@ -233,6 +241,15 @@ def decode_channels(blob: bytes) -> np.ndarray:
                 raise ValueError(f"channel {column} duplicates invalid channel {parameter}")
             out[:, column] = out[:, parameter]
     return out
+
+
+def _int64s(blob: bytes, max_values: int) -> np.ndarray:
+    """A section the encoder writes as int64 (at most `max_values` of them); any other dtype is
+    refused, so hostile values cannot overflow the decoder's arithmetic."""
+    values = entropy.decode_ints(blob, max_values)
+    if values.dtype != np.int64:
+        raise ValueError(f"expected int64 values, got {values.dtype}")
+    return values
 
 
 # ------------------------------------------------------------ residual coding (version 2)
@@ -277,7 +294,7 @@ def _decode_digits(blob: bytes, n: int, count: int) -> np.ndarray:
     if not blob:
         raise ValueError("empty digit section")
     if blob[0] == _ZSTD:
-        digits = entropy.decode_ints(blob[1:])
+        digits = entropy.decode_ints(blob[1:], count)
         if digits.shape != (count,):
             raise ValueError(f"digit section for n={n} has the wrong length")
     elif blob[0] == _PACKED and n <= _MAX_PACKED_DIGITS:
