@@ -18,7 +18,14 @@ blank; a frame is a line holding only its number, then one line per bone (name, 
 frame numbers may start anywhere but must go up by one; every frame lists the same bones
 with the same number of values; values follow the grammar in `text` and lie within
 +-`text.MAX_ABS_VALUE` (1e9). A truncated LAST frame (a copy cut short, e.g. cmu/64/golf_01.amc)
-is dropped with a warning; a truncated frame anywhere else is an error.
+is dropped with a warning and counted in `Motion.dropped_frames` (or, with
+`partial_last_frame="error"`, refused: lossless compression cannot keep it); a truncated frame
+anywhere else is an error.
+
+Size limits (`mocapzip.limits`) are checked before the work they bound: a file larger than
+`MAX_AMC_BYTES` is refused before it is read, values per frame when the first frame is read,
+and frames and frames x values before any value is converted. With a skeleton, the angles of
+a clip in radians must lie within `MAX_RADIANS` (see `_check_angles`).
 
 Writing remembers how the source wrote its numbers and lines (`AmcStyle`): CMU files are
 written back with 6 significant digits and 3-digit exponents, Vicon Blade files with 6 fixed
@@ -35,6 +42,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from ..limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from .errors import MocapFormatError
 from .text import (
     MAX_ABS_VALUE,
@@ -43,6 +51,7 @@ from .text import (
     check_text,
     detect_encoding,
     number,
+    open_regular_file,
     padded_buffer,
     parse_number_tokens,
     token_bounds,
@@ -52,6 +61,9 @@ __all__ = ["AmcStyle", "Motion", "read_amc", "parse_amc", "format_amc", "write_a
 
 _MAX_FAST_BONES = 255  # first frames with more bones take the exact path
 MAX_FRAME_NUMBER = 10**9  # larger frame numbers are refused (a day at 10 kHz is below 1e9)
+BYTES_PER_VALUE = 16  # shared files take at most 13.7 (Vicon Blade's 6 decimals; CMU 9), names and frame lines included
+MAX_AMC_BYTES = BYTES_PER_VALUE * MAX_VALUES_PER_CLIP  # 128 MiB: larger files are refused unread
+MAX_RADIANS = 100 * np.pi  # 50 turns; the largest angle of the shared (degree) files is 2,070 deg, 36 rad
 
 
 @dataclass(frozen=True)
@@ -110,6 +122,7 @@ class Motion:
     header: list[str] = field(default_factory=list)  # lines before the first frame, verbatim (no line ends)
     path: str | None = None
     style: AmcStyle = field(default_factory=AmcStyle)  # number and line style of the source file
+    dropped_frames: int = 0  # incomplete frames left out at the end of the file (a copy cut short)
 
     @property
     def n_frames(self) -> int:
@@ -129,31 +142,63 @@ class Motion:
 # --------------------------------------------------------------------------- reading
 
 
-def read_amc(path: str | os.PathLike, skeleton=None) -> Motion:
-    """Parse an AMC file; with `skeleton` (a Skeleton), also check bone names and value counts."""
+def read_amc(path: str | os.PathLike, skeleton=None, *, partial_last_frame: str = "drop") -> Motion:
+    """Parse an AMC file; with `skeleton` (a Skeleton), also check bone names, value counts and
+    angles. `partial_last_frame`: "drop" an incomplete last frame with a warning (counted in
+    `Motion.dropped_frames`) or refuse the file ("error"), for callers that must keep every byte."""
     path = os.fspath(path)
-    with open(path, "rb") as fh:
-        data = fh.read()
-    return _parse(data, path, skeleton, stacklevel=4)
+    with open_regular_file(path) as fh:
+        _check_size(os.fstat(fh.fileno()).st_size, path)
+        data = fh.read(MAX_AMC_BYTES + 1)  # the file may have grown since
+    return _parse(data, path, skeleton, partial_last_frame, stacklevel=4)
 
 
-def parse_amc(data: bytes, path: str | None = None, skeleton=None) -> Motion:
-    """Parse AMC bytes (`path` only names the source in messages and in `Motion.path`)."""
-    return _parse(data, path, skeleton, stacklevel=4)
+def parse_amc(data: bytes, path: str | None = None, skeleton=None, *, partial_last_frame: str = "drop") -> Motion:
+    """Parse AMC bytes (`path` only names the source in messages and in `Motion.path`); see `read_amc`."""
+    return _parse(data, path, skeleton, partial_last_frame, stacklevel=4)
 
 
-def _parse(data, path, skeleton, stacklevel: int) -> Motion:
+def _parse(data, path, skeleton, partial_last_frame: str, stacklevel: int) -> Motion:
+    if partial_last_frame not in ("drop", "error"):
+        raise ValueError(f"partial_last_frame must be 'drop' or 'error', got {partial_last_frame!r}")
     if isinstance(data, str):
         data = data.encode("utf-8")
+    _check_size(len(data), path)
     data = check_text(data, path)
     encoding = "utf-8" if data.isascii() else detect_encoding(data)
     parsed = _parse_fast(data, path, encoding)
     if parsed is None:
-        return _parse_exact(data, path, encoding, skeleton, stacklevel)[0]
-    motion, first_lines = parsed
+        motion, first_lines = _parse_exact(data, path, encoding, skeleton, partial_last_frame, stacklevel)
+    else:
+        motion, first_lines = parsed
+        if skeleton is not None:
+            _check_against_skeleton(motion.bones, motion.counts, first_lines, skeleton, path)
     if skeleton is not None:
-        _check_against_skeleton(motion.bones, motion.counts, first_lines, skeleton, path)
+        _check_angles(motion, skeleton, path)
     return motion
+
+
+def _check_size(n_bytes: int, path) -> None:
+    """Refuse a file too large to hold a clip within the limits, before reading or parsing it."""
+    if n_bytes > MAX_AMC_BYTES:
+        raise MocapFormatError(
+            f"file of {n_bytes:,} bytes is larger than the {MAX_AMC_BYTES:,} bytes an AMC file may have "
+            f"({BYTES_PER_VALUE} bytes for each of the {MAX_VALUES_PER_CLIP:,} values a clip may hold)", path
+        )
+
+
+def _frames_allowed(n_values: int) -> int:
+    """How many frames of `n_values` values a clip may have (MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP)."""
+    return min(MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP // n_values) if n_values else MAX_FRAMES_PER_CLIP
+
+
+def _too_many_frames(n_values: int, frame_number: int, path, line: int) -> MocapFormatError:
+    """The error for frame `frame_number`, the first beyond `_frames_allowed(n_values)`."""
+    if _frames_allowed(n_values) == MAX_FRAMES_PER_CLIP:
+        limit = f"more than the {MAX_FRAMES_PER_CLIP:,} frames a clip may have"
+    else:
+        limit = f"more than the {MAX_VALUES_PER_CLIP:,} values a clip may have ({n_values} per frame)"
+    return MocapFormatError(f"frame {frame_number} makes the clip too long: {limit}", path, line)
 
 
 def _is_frame_line(stripped: bytes) -> bool:
@@ -213,9 +258,9 @@ def _parse_fast(data: bytes, path, encoding):
         if len(lines) > _MAX_FAST_BONES + 1:
             return None  # a first frame of more than _MAX_FAST_BONES bones: exact path
     n_bones = len(bones)
-    if n_bones == 0:
-        return None
     n_values = sum(counts)
+    if n_bones == 0 or n_values > MAX_VALUES_PER_FRAME:
+        return None  # the exact path names the fault
 
     buf = padded_buffer(body)
     starts, ends = token_bounds(buf)
@@ -259,6 +304,9 @@ def _parse_fast(data: bytes, path, encoding):
     frame_numbers = frame_block.values.astype(np.int64)
     if (n_frames > 1 and not np.all(np.diff(frame_numbers) == 1)) or frame_numbers[-1] > MAX_FRAME_NUMBER:
         return None
+    allowed = _frames_allowed(n_values)
+    if n_frames > allowed:
+        raise _too_many_frames(n_values, int(frame_numbers[allowed]), path, len(header) + 1 + allowed * (1 + n_bones))
 
     # Values.
     block = parse_number_tokens(buf, starts[:, value_cols].ravel(), ends[:, value_cols].ravel())
@@ -312,7 +360,7 @@ def _number_style(block) -> dict:
     return {"notation": "g", "digits": digits, "exponent_digits": exponent_digits}
 
 
-def _parse_exact(data: bytes, path, encoding, skeleton=None, stacklevel: int = 2):
+def _parse_exact(data: bytes, path, encoding, skeleton=None, partial_last_frame: str = "drop", stacklevel: int = 2):
     """Line by line: any valid layout, and the first fault of a damaged file with its line."""
     parts = re.split(rb"(\r\n|\r|\n)", data)
     lines = parts[0::2]
@@ -355,9 +403,10 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, stacklevel: int = 2
     current: dict[bytes, tuple[int, list[bytes]]] = {}
     current_number = current_line = None
     truncated_at = None
+    allowed = 0  # frames the clip may have, once the first frame gives the values per frame
 
     def close_frame(next_line: int | None) -> None:
-        nonlocal bones, counts
+        nonlocal bones, counts, allowed
         if current_number is None:
             return
         if bones is None:
@@ -370,6 +419,10 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, stacklevel: int = 2
             first_lines.update({bones[k]: current[b][0] for k, b in enumerate(order)})
             if skeleton is not None:
                 _check_against_skeleton(bones, counts, first_lines, skeleton, path)
+            if sum(counts) > MAX_VALUES_PER_FRAME:
+                raise MocapFormatError(f"frame {current_number} has {sum(counts):,} values, more than the "
+                                       f"{MAX_VALUES_PER_FRAME:,} a frame may have", path, current_line)
+            allowed = _frames_allowed(sum(counts))
         elif len(current) != len(column):
             missing = [b.decode(encoding) for b in column if b not in current]
             shown = ", ".join(repr(m) for m in missing[:5]) + (", ..." if len(missing) > 5 else "")
@@ -386,6 +439,8 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, stacklevel: int = 2
             lineno, words = current[b]
             rows.append(words)
             linenos.append(lineno)
+        if len(frame_numbers) == allowed:
+            raise _too_many_frames(sum(counts), current_number, path, current_line)
         frame_rows.append(rows)
         frame_linenos.append(linenos)
         frame_numbers.append(current_number)
@@ -445,13 +500,14 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, stacklevel: int = 2
             separator = raw[len(name) : raw.index(values[0], len(name))].decode("ascii", "replace")
         current[name] = (lineno, values)
 
+    dropped = 0
     if bones is not None and current_number is not None and (truncated_at is not None or len(current) != len(column)):
-        warnings.warn(
-            f"{path}:{current_line}: last frame {current_number} is incomplete ({len(current)} of "
-            f"{len(column)} bones, the file ends at line {truncated_at or last_content + 1}); dropped",
-            stacklevel=stacklevel,
-        )
-        current_number = None
+        incomplete = (f"last frame {current_number} is incomplete ({len(current)} of {len(column)} bones, "
+                      f"the file ends at line {truncated_at or last_content + 1})")
+        if partial_last_frame == "error":
+            raise MocapFormatError(f"{incomplete}: --lossless cannot keep a partial frame", path, current_line)
+        warnings.warn(f"{path}:{current_line}: {incomplete}; dropped", stacklevel=stacklevel)
+        current_number, dropped = None, 1
     close_frame(None)
     if bones is None:  # only possible when the single frame had no bones
         raise MocapFormatError(f"frame {current_number} has no bone lines", path, current_line)
@@ -482,7 +538,7 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, stacklevel: int = 2
         encoding=encoding,
     )
     values = block.values.reshape(n_frames, int(counts_arr.sum()))
-    motion = Motion(bones, counts, values, np.array(frame_numbers, dtype=np.int64), header, path, style)
+    motion = Motion(bones, counts, values, np.array(frame_numbers, dtype=np.int64), header, path, style, dropped)
     return motion, first_lines
 
 
@@ -493,17 +549,46 @@ def _show(raw: bytes) -> str:
 
 def _check_against_skeleton(bones, counts, first_lines: dict, skeleton, path) -> None:
     where = f" {skeleton.path}" if getattr(skeleton, "path", None) else ""
+    dofs = skeleton.dof_map()
     for name, count in zip(bones, counts):
-        try:
-            dof = skeleton.dof_of(name)
-        except KeyError:
-            raise MocapFormatError(f"bone '{name}' is not in the skeleton{where}", path, first_lines.get(name)) from None
+        dof = dofs.get(name)
+        if dof is None:
+            raise MocapFormatError(f"bone '{name}' is not in the skeleton{where}", path, first_lines.get(name))
         if count != len(dof):
             raise MocapFormatError(
                 f"bone '{name}' has {count} values, the skeleton{where} gives it {len(dof)} dof ({' '.join(dof) or 'none'})",
                 path,
                 first_lines.get(name),
             )
+
+
+def _check_angles(motion: Motion, skeleton, path) -> None:
+    """Refuse a clip in radians holding an angle beyond MAX_RADIANS.
+
+    No joint turns 50 times: such values are degrees under a wrong ':RADIANS' header (or ASF
+    'angle rad'), and read as radians they make a random pose of each frame. The unit is
+    decided as `SkeletonModel.layout` decides it: the AMC header first, then the skeleton.
+    """
+    header = [line.strip().upper() for line in motion.header]
+    if ":RADIANS" in header:
+        line, declared = header.index(":RADIANS") + 1, "this ':RADIANS' line declares"
+    elif ":DEGREES" not in header and skeleton.angle_unit == "rad":
+        where = f" {skeleton.path}" if skeleton.path else ""
+        line, declared = None, f"the skeleton{where} declares ('angle rad')"
+    else:
+        return
+    dofs = skeleton.dof_map()
+    rotations = np.array([d.startswith("r") for bone in motion.bones for d in dofs[bone]], dtype=bool)
+    beyond = (np.abs(motion.values) > MAX_RADIANS) & rotations
+    if beyond.any():
+        frame, column = divmod(int(np.argmax(beyond)), beyond.shape[1])
+        bone = motion.bones[int(np.searchsorted(np.cumsum(motion.counts), column, side="right"))]
+        raise MocapFormatError(
+            f"angle {motion.values[frame, column]:g} of bone '{bone}' in frame {motion.frame_numbers[frame]} is beyond "
+            f"{MAX_RADIANS:.4g} rad (50 turns): the values look like degrees, not the radians {declared}",
+            path,
+            line,
+        )
 
 
 # --------------------------------------------------------------------------- writing

@@ -11,7 +11,9 @@ with `inf`), `:hierarchy` (begin, `parent child...` lines, end); `#` comments an
 CRLF, LF or CR line ends, mixed; tabs. Unknown sections are skipped with a warning naming
 file and line. Every fault raises `MocapFormatError` with file and line: malformed numbers,
 wrong value counts, a bone without `end`, duplicate bones, hierarchy lines naming unknown
-bones, bones with two parents, cycles, bones missing from the hierarchy.
+bones, bones with two parents, cycles, bones missing from the hierarchy; a `:units length`
+outside `UNITS_LENGTH_RANGE` and bones longer than `MAX_BONE_CM` (no body has them, and
+their positions could not be coded to a centimetre). All checks are linear in the file size.
 """
 
 from __future__ import annotations
@@ -23,8 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..limits import MAX_BONES_PER_SKELETON
 from .errors import MocapFormatError
-from .text import decode_text, integer, number, split_lines
+from .text import decode_text, integer, number, open_regular_file, split_lines
 
 __all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "format_asf", "write_asf"]
 
@@ -32,6 +35,8 @@ ROOT = "root"
 KNOWN_SECTIONS = {"version", "name", "units", "documentation", "root", "bonedata", "hierarchy"}
 DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz", "l")
 ROOT_CHANNELS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+UNITS_LENGTH_RANGE = (1e-6, 1e6)  # `:units length` (file units per inch); real files: 0.45 (CMU, HDM05), 1 (Blade)
+MAX_BONE_CM = 1e4  # 100 m; the longest bone of the shared data is 50 cm
 
 
 @dataclass
@@ -97,11 +102,15 @@ class Skeleton:
             return tuple(c.lower() for c in self.root_order)
         return self.bone(name).dof
 
+    def dof_map(self) -> dict[str, tuple[str, ...]]:
+        """`dof_of` for every bone and the root at once (a lookup per bone stays O(1))."""
+        return {ROOT: self.dof_of(ROOT), **{bone.name: bone.dof for bone in self.bones}}
+
 
 def read_asf(path: str | os.PathLike) -> Skeleton:
     """Parse an ASF file; raise MocapFormatError naming file and line on bad input."""
     path = os.fspath(path)
-    with open(path, "rb") as fh:
+    with open_regular_file(path) as fh:
         data = fh.read()
     return _AsfParser(split_lines(decode_text(data, path)), path, stacklevel=4).parse()
 
@@ -122,6 +131,8 @@ class _AsfParser:
         self.bone: Bone | None = None
         self.bone_line = 0  # line of the open bone's 'begin'
         self.bone_lines: dict[str, int] = {}  # bone name -> line of its 'name'
+        self.length_lines: dict[str, int] = {}  # bone name -> line of its 'length'
+        self.length_line: int | None = None  # of the open bone
         self.limits_open = False  # the previous bone line was 'limits' (or a continuation)
         self.hierarchy_lines: list[int] = []
         self.hierarchy_state = None  # None, 'open' after 'begin', 'closed' after 'end'
@@ -135,7 +146,7 @@ class _AsfParser:
         return number(word, self.path, lineno, what=what)
 
     def parse(self) -> Skeleton:
-        section = None
+        section = handler = None
         for lineno, raw in enumerate(self.lines, start=1):
             line = raw.strip()
             if not line:
@@ -146,13 +157,12 @@ class _AsfParser:
                 continue
             if line.startswith(":"):
                 section = self.start_section(line, lineno)
+                handler = getattr(self, f"line_{section}", None)
                 continue
             if section is None:
                 self.fail(f"expected a ':section' or '#' comment, got {line[:40]!r}", lineno)
-            words = line.split()
-            handler = getattr(self, f"line_{section}", None)
             if handler is not None:
-                handler(words, line, lineno)
+                handler(line.split(), line, lineno)
         self.finish(len(self.lines))
         return self.skel
 
@@ -195,7 +205,11 @@ class _AsfParser:
             if value.lower() not in ("deg", "rad", "degree", "degrees", "radian", "radians"):
                 self.fail(f"angle unit must be 'deg' or 'rad', got {value!r}", lineno)
         else:
-            self.num(value, lineno, what=f"units {key}")
+            scale = self.num(value, lineno, what=f"units {key}")
+            low, high = UNITS_LENGTH_RANGE
+            if key == "length" and not low <= scale <= high:
+                self.fail(f"units length {value} is outside [{low:g}, {high:g}] "
+                          "(file lengths are inches x this factor)", lineno)
         self.skel.units[key] = value
 
     def line_documentation(self, words, line, lineno):
@@ -230,7 +244,7 @@ class _AsfParser:
                 self.fail(f"'begin' inside bone '{self.bone.name or '?'}' (begin at line {self.bone_line}; missing 'end')", lineno)
             if len(words) > 1:
                 self.fail(f"unexpected text after 'begin': {line[:40]!r}", lineno)
-            self.bone, self.bone_line, self.limits_open = Bone(name=""), lineno, False
+            self.bone, self.bone_line, self.limits_open, self.length_line = Bone(name=""), lineno, False, None
             return
         bone = self.bone
         if bone is None:
@@ -265,6 +279,7 @@ class _AsfParser:
             if len(words) != 2:
                 self.fail(f"length needs 1 number, got {len(words) - 1}", lineno)
             bone.length = self.num(words[1], lineno)
+            self.length_line = lineno
         elif key == "axis":
             if len(words) not in (4, 5):
                 self.fail(f"axis needs 3 angles and an order, got {line[:40]!r}", lineno)
@@ -319,7 +334,11 @@ class _AsfParser:
             self.fail(f"bone (begin at line {self.bone_line}) has no name", lineno)
         if bone.limits and len(bone.limits) != len(bone.dof):
             self.fail(f"bone '{bone.name}' has {len(bone.dof)} dof but {len(bone.limits)} limits", lineno)
+        if len(self.skel.bones) == MAX_BONES_PER_SKELETON:
+            self.fail(f"more than the {MAX_BONES_PER_SKELETON:,} bones a skeleton may have", lineno)
         self.skel.bones.append(bone)
+        if self.length_line is not None:
+            self.length_lines[bone.name] = self.length_line
         self.bone = None
         self.limits_open = False
 
@@ -375,15 +394,26 @@ class _AsfParser:
             if bone.name not in parent_of:
                 self.fail(f"bone '{bone.name}' is not in ':hierarchy'", self.bone_lines.get(bone.name))
         # Every bone has one parent; a bone that does not lead back to root sits on a cycle.
+        # A walk stops at the first bone known to reach root, so each bone is walked once.
+        reaches_root = {ROOT}
         for bone in skel.bones:
-            chain = [bone.name]
+            chain, on_chain = [], set()
             node = bone.name
-            while node != ROOT:
-                node = parent_of[node][0]
-                if node in chain:
+            while node not in reaches_root:
+                if node in on_chain:
                     loop = chain[chain.index(node) :] + [node]
                     self.fail(f"cycle in ':hierarchy': {' <- '.join(loop)}", parent_of[loop[0]][1])
                 chain.append(node)
+                on_chain.add(node)
+                node = parent_of[node][0]
+            reaches_root.update(chain)
+        cm_per_unit = skel.cm_per_unit
+        for bone in skel.bones:
+            cm = float(np.linalg.norm(bone.direction)) * abs(bone.length) * cm_per_unit
+            if not cm <= MAX_BONE_CM:
+                self.fail(f"bone '{bone.name}' is {cm:.3g} cm long (direction x length x {cm_per_unit:.6g} cm "
+                          f"per unit), longer than the {MAX_BONE_CM:g} cm a bone may be",
+                          self.length_lines.get(bone.name, self.bone_lines[bone.name]))
 
 
 # --------------------------------------------------------------------------- writing

@@ -18,7 +18,10 @@ digits, exponents beyond 10**22, malformed text) are reported for the caller to 
 
 from __future__ import annotations
 
+import io
+import os
 import re
+import stat
 
 import numpy as np
 
@@ -31,6 +34,40 @@ NUMBER = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
 WHITESPACE = b" \t\r\n\x0b\x0c"  # what bytes.split() splits on
 _UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 _UTF8_BOM = b"\xef\xbb\xbf"
+
+
+# --------------------------------------------------------------------------- opening
+
+_KINDS = {stat.S_IFIFO: "a named pipe (FIFO)", stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
+          stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a directory"}
+
+
+def check_regular_file(st: os.stat_result, path) -> None:
+    """MocapFormatError unless `st` (of `path`) is a regular file: a pipe would block a reader
+    and a device (/dev/zero) never ends, so input files must be plain files."""
+    if not stat.S_ISREG(st.st_mode):
+        kind = _KINDS.get(stat.S_IFMT(st.st_mode), "a special file")
+        target = os.path.realpath(path)
+        if target != os.path.abspath(path):
+            kind += f" ({target})"
+        raise MocapFormatError(f"not a regular file: {kind}", path)
+
+
+def open_regular_file(path) -> io.BufferedReader:
+    """`path` opened for binary reading; MocapFormatError if it is not a regular file (a symbolic
+    link to one is fine), OSError if it cannot be opened.
+
+    The type is checked before opening, so opening never blocks on a FIFO, and again on the
+    open descriptor (opened with O_NONBLOCK), in case the path was replaced in between.
+    """
+    check_regular_file(os.stat(path), path)
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        check_regular_file(os.fstat(fd), path)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
 
 
 # --------------------------------------------------------------------------- decoding

@@ -64,6 +64,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from . import __version__
+from .classes import read_class_table
 from .formats.errors import MocapFormatError
 from .inputs import ClipSource, find_clips
 from .progress import progress
@@ -210,11 +211,9 @@ def _groups(sources: list[ClipSource], table, inputs) -> dict[str, str]:
     MANIFEST.tsv works), else a MANIFEST.tsv in or above an input folder, else the skeleton name."""
     fallback = {s.relpath: (s.asf.stem if s.asf is not None else "all") for s in sources}
     candidates = [Path(table)] if table else _find_manifests(inputs)
-    if table and not Path(table).is_file():
-        raise MocapFormatError("class table not found", table)
     found: dict[str, str] = {}
     for path in candidates:
-        entries = _read_table(path)
+        entries = read_class_table(path)
         by_file = {(path.parent / key).resolve(): value for key, value in entries.items()}
         for s in sources:
             if s.relpath in found:
@@ -238,20 +237,6 @@ def _find_manifests(inputs) -> list[Path]:
                 out.append(candidate)
                 break
     return out
-
-
-def _read_table(path: Path) -> dict[str, str]:
-    text = path.read_text(encoding="utf-8", errors="replace")
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
-    if not lines:
-        return {}
-    rows = list(csv.reader(lines, dialect="excel-tab" if "\t" in lines[0] else "excel"))
-    header = [h.strip().lower() for h in rows[0]]
-    file_col, class_col, start = 0, 1, 0
-    if "class" in header:
-        class_col, file_col, start = header.index("class"), header.index("file") if "file" in header else 0, 1
-    return {r[file_col].strip().replace("\\", "/"): r[class_col].strip()
-            for r in rows[start:] if len(r) > max(file_col, class_col) and r[class_col].strip()}
 
 
 def _original(clip: Clip, models):

@@ -12,7 +12,9 @@ from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 
 from .formats.errors import MocapFormatError
+from .formats.text import open_regular_file
 from .inputs import ClipSource
+from .limits import MAX_PATH_BYTES
 
 
 def class_namer(mode: str) -> Callable[[ClipSource], str]:
@@ -28,7 +30,7 @@ def class_namer(mode: str) -> Callable[[ClipSource], str]:
         # Clips sharing a skeleton file are one subject (CMU: one ASF per subject folder).
         return _subject_name
     path = Path(mode)
-    if path.suffix.lower() in (".csv", ".tsv") or path.is_file():
+    if path.suffix.lower() in (".csv", ".tsv") or (path.exists() and not path.is_dir()):
         table = read_class_table(path)
 
         def from_table(clip: ClipSource) -> str:
@@ -50,20 +52,30 @@ def _subject_name(clip: ClipSource) -> str:
 
 def read_class_table(path) -> dict[str, str]:
     """Rows `clip path, class` of a CSV or TSV file; a header naming `file` and `class`
-    columns (MANIFEST.tsv) is understood. Rows with an empty class are skipped."""
+    columns (MANIFEST.tsv) is understood. Rows with an empty class are skipped.
+
+    Fields are clip paths and class names (and notes), so one longer than MAX_PATH_BYTES
+    characters is refused, naming the line, as is any CSV error (a field beyond the csv
+    module's own limit of 131,072 characters included).
+    """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise MocapFormatError("class table not found", path)
-    lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    with open_regular_file(path) as fh:
+        lines = fh.read().decode("utf-8", errors="replace").splitlines()
     if not lines:
         raise MocapFormatError("class table is empty", path)
-    rows = list(csv.reader(lines, dialect="excel-tab" if "\t" in lines[0] else "excel"))
-    header = [h.strip().lower() for h in rows[0]]
+    reader = csv.reader(lines, dialect="excel-tab" if "\t" in lines[0] else "excel")
+    try:
+        rows = [(reader.line_num, _checked_row(row, path, reader.line_num)) for row in reader]
+    except csv.Error as exc:
+        raise MocapFormatError(f"not a valid CSV table: {exc}", path, reader.line_num) from None
+    header = [h.strip().lower() for h in rows[0][1]]
     file_col, class_col, start = 0, 1, 0
     if "class" in header:
         class_col, file_col, start = header.index("class"), header.index("file") if "file" in header else 0, 1
     table = {}
-    for lineno, row in enumerate(rows[start:], start=start + 1):
+    for lineno, row in rows[start:]:
         if not row or not row[0].strip() or row[0].startswith("#"):
             continue
         if len(row) <= max(file_col, class_col):
@@ -71,6 +83,15 @@ def read_class_table(path) -> dict[str, str]:
         if row[class_col].strip():
             table[row[file_col].strip().replace("\\", "/")] = row[class_col].strip()
     return table
+
+
+def _checked_row(row: list[str], path: Path, lineno: int) -> list[str]:
+    """`row`, or MocapFormatError if a field is longer than MAX_PATH_BYTES characters."""
+    for field in row:
+        if len(field) > MAX_PATH_BYTES:
+            raise MocapFormatError(f"a field of {len(field):,} characters, longer than the {MAX_PATH_BYTES:,} "
+                                   "a clip path or class name may have", path, lineno)
+    return row
 
 
 def class_in_table(source: ClipSource, table: dict[str, str]) -> str | None:

@@ -164,12 +164,16 @@ class ClipReader:
 
     def read(self, source: ClipSource) -> LoadedClip:
         """Parse the clip (checking every bone line against its skeleton) and convert it; raises
-        MocapFormatError or OSError if it cannot be read."""
+        MocapFormatError or OSError if it cannot be read.
+
+        Without a representation (lossless) a truncated last frame is refused: it could not
+        come back byte for byte. Lossy reading drops it (`Motion.dropped_frames`)."""
         if source.asf not in self._skeletons:
             skeleton = read_asf(source.asf)
             self._skeletons[source.asf] = (skeleton, SkeletonModel.from_asf(skeleton))
         skeleton, model = self._skeletons[source.asf]
-        motion = read_amc(source.amc, skeleton)
+        lossless = self.representation_name is None
+        motion = read_amc(source.amc, skeleton, partial_last_frame="error" if lossless else "drop")
         encoded = positions = None
         if self.representation_name is not None:
             encoded = get_representation(self.representation_name, self.axes_from_positions).forward(model, motion)

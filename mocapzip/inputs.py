@@ -2,7 +2,9 @@
 
 An AMC pairs with the one ASF in its own folder, or with the ASF the user names
 (`--asf`). The pairing is decided here, once, so `inspect`, `compress` and `bench`
-agree on what a clip is.
+agree on what a clip is. Nothing is left out silently: a folder that cannot be listed is an
+error (or, with a `skipped` list, a listed skip), and a named input that is not a regular
+file (a FIFO, a device) is refused before anything opens it.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .formats.errors import MocapFormatError
+from .formats.text import check_regular_file
 
 
 @dataclass(frozen=True)
@@ -36,24 +39,21 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
                require_skeleton: bool = True, skipped: list | None = None) -> list[ClipSource]:
     """All AMC files under `inputs` (directories are walked recursively), sorted by stored path.
 
-    Raises MocapFormatError for a missing input, or (with `require_skeleton`) an AMC with no
-    skeleton or an ambiguous one; without `require_skeleton` that AMC gets a warning and no
-    skeleton. With a `skipped` list, such an AMC is left out and recorded there instead
-    (see `record_skip`).
+    Raises MocapFormatError for a missing input, a folder that cannot be listed, or (with
+    `require_skeleton`) an AMC with no skeleton or an ambiguous one; without `require_skeleton`
+    that AMC gets a warning and no skeleton. With a `skipped` list, such an AMC or folder is
+    left out and recorded there instead (see `record_skip`).
     """
     forced = Path(asf) if asf is not None else None
-    if forced is not None and not forced.is_file():
-        raise MocapFormatError("skeleton file not found", forced)
+    if forced is not None:
+        if not forced.exists():
+            raise MocapFormatError("skeleton file not found", forced)
+        check_regular_file(forced.stat(), forced)
     clips: list[ClipSource] = []
     for item in inputs:
         path = Path(item)
         if path.is_dir():
-            for folder, dirs, files in os.walk(path):
-                dirs.sort()
-                for name in sorted(files):
-                    if _is_amc(name):
-                        amc = Path(folder) / name
-                        clips.append(ClipSource(amc, None, amc.relative_to(path).as_posix()))
+            clips += _amcs_under(path, skipped)
         elif path.is_file():
             if not _is_amc(path.name):
                 if _is_asf(path.name):
@@ -62,6 +62,8 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
             clips.append(ClipSource(path, None, path.name))
         elif path.is_symlink():
             raise MocapFormatError("symbolic link loop or dangling symbolic link", path)
+        elif path.exists():
+            check_regular_file(path.stat(), path)  # a FIFO or a device: refused, never opened
         else:
             raise MocapFormatError("no such file or directory", path)
     seen: dict[str, Path] = {}
@@ -80,15 +82,42 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
     return sorted(paired, key=lambda c: c.relpath)
 
 
+def _amcs_under(top: Path, skipped: list | None) -> list[ClipSource]:
+    """Every AMC under folder `top`, stored relative to it. A folder that cannot be listed
+    raises MocapFormatError or, with a `skipped` list, is recorded there under its path."""
+
+    def unlisted(error: OSError) -> None:
+        folder = Path(error.filename or top)
+        failure = MocapFormatError(f"cannot list this folder, its clips would be left out: {error.strerror}", folder)
+        if skipped is None:
+            raise failure
+        _record(skipped, folder.relative_to(top).as_posix() if folder != top else os.fspath(top), failure)
+
+    found = []
+    for folder, dirs, files in os.walk(top, onerror=unlisted):
+        dirs.sort()
+        for name in sorted(files):
+            if _is_amc(name):
+                amc = Path(folder) / name
+                found.append(ClipSource(amc, None, amc.relative_to(top).as_posix()))
+    return found
+
+
 def record_skip(skipped: list, clip: ClipSource, exc: Exception) -> None:
     """Add {"path": stored path, "error": one line} to `skipped` and say so in a warning."""
+    _record(skipped, clip.relpath, exc)
+
+
+def _record(skipped: list, relpath: str, exc: Exception) -> None:
+    """`record_skip` for a clip or a folder stored (or not) under `relpath`."""
     error = f"{exc.filename}: {exc.strerror}" if isinstance(exc, OSError) and exc.filename else str(exc)
-    skipped.append({"path": clip.relpath, "error": error})
-    warnings.warn(f"skipped {clip.relpath}: {error}", stacklevel=3)
+    skipped.append({"path": relpath, "error": error})
+    warnings.warn(f"skipped {relpath}: {error}", stacklevel=4)
 
 
 def _skeleton_in_folder(amc: Path, required: bool) -> Path | None:
-    candidates = sorted(p for p in amc.parent.iterdir() if p.is_file() and _is_asf(p.name))
+    # Any non-folder .asf counts, so that a FIFO or a dangling link is refused by name when read.
+    candidates = sorted(p for p in amc.parent.iterdir() if _is_asf(p.name) and not p.is_dir())
     if len(candidates) == 1:
         return candidates[0]
     if not candidates:

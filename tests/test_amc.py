@@ -11,7 +11,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mocapzip.formats.amc import AmcStyle, Motion, _parse_exact, _parse_fast, format_amc, parse_amc, read_amc, write_amc
+from mocapzip.formats.amc import (
+    MAX_AMC_BYTES,
+    MAX_RADIANS,
+    AmcStyle,
+    Motion,
+    _parse_exact,
+    _parse_fast,
+    format_amc,
+    parse_amc,
+    read_amc,
+    write_amc,
+)
 from mocapzip.formats.asf import read_asf
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import NUMBER, padded_buffer, parse_number_tokens, token_bounds
@@ -111,8 +122,13 @@ def test_every_shared_file_parses(path):
     assert np.all(np.isfinite(motion.values))
     if path.name == "golf_01.amc":
         assert len(caught) == 1 and "last frame 444 is incomplete" in str(caught[0].message)
+        assert motion.dropped_frames == 1
     else:
-        assert not caught
+        assert not caught and motion.dropped_frames == 0
+        read_amc(path, skeleton, partial_last_frame="error")  # strict mode (--lossless) takes every complete file
+    # far within the limits (formats/amc.py): 13.7 bytes a value at most, no angle near 50 turns
+    assert path.stat().st_size <= 14 * motion.values.size < MAX_AMC_BYTES / 25
+    assert np.abs(motion.values).max() < MAX_RADIANS * 180 / np.pi / 8
 
 
 def test_manifest_frame_counts_match():

@@ -9,7 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocapzip.formats.asf import Bone, Skeleton, format_asf, parse_asf, read_asf, write_asf
+from mocapzip.formats.asf import (
+    MAX_BONE_CM,
+    UNITS_LENGTH_RANGE,
+    Bone,
+    Skeleton,
+    format_asf,
+    parse_asf,
+    read_asf,
+    write_asf,
+)
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 ASF_FILES = sorted(
@@ -45,6 +54,16 @@ def test_write_then_read_keeps_every_field(path, tmp_path):
     again = read_asf(out)  # no warning: unknown sections are not written back
     assert_same_skeleton(skel, again)
     assert format_asf(again) == format_asf(skel)
+
+
+@pytest.mark.parametrize("path", ASF_FILES, ids=[str(p.relative_to(DATA)) for p in ASF_FILES])
+def test_real_skeletons_are_far_within_the_bounds(path):
+    """The bounds that refuse impossible skeletons leave real ones a wide margin."""
+    skel = read_quietly(path)
+    low, high = UNITS_LENGTH_RANGE
+    assert low * 1e4 < skel.length_scale < high / 1e4  # 0.45 (CMU, HDM05) or 1 (Blade)
+    assert max(np.linalg.norm(b.direction) * b.length * skel.cm_per_unit for b in skel.bones) < MAX_BONE_CM / 100
+    assert skel.dof_map() == {name: skel.dof_of(name) for name in ["root", *(b.name for b in skel.bones)]}
 
 
 def test_cmu_skeleton_content():

@@ -6,6 +6,7 @@ deleted, ...), so the surrounding content is realistic and the line numbers are 
 
 from __future__ import annotations
 
+import functools
 import pickle
 import re
 import warnings
@@ -16,8 +17,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mocapzip.formats.amc import parse_amc, read_amc
-from mocapzip.formats.asf import parse_asf, read_asf
+from mocapzip.formats import amc as amc_module
+from mocapzip.formats.amc import MAX_RADIANS, parse_amc, read_amc
+from mocapzip.formats.asf import MAX_BONE_CM, parse_asf, read_asf
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import MAX_ABS_VALUE
 
@@ -213,8 +215,94 @@ def test_truncated_last_frame_is_dropped_with_a_warning(tmp_path, cut):
     path = write(tmp_path, lines)
     with pytest.warns(UserWarning, match=rf"bad\.amc:{last + 1}: last frame 316 is incomplete \((11|12) of 29 bones"):
         motion = read_amc(path)
-    assert motion.n_frames == 315
+    assert motion.n_frames == 315 and motion.dropped_frames == 1
     np.testing.assert_array_equal(motion.values, read_amc(AMC).values[:315])
+    assert read_amc(AMC).dropped_frames == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # strict mode refuses without a warning
+        raises(path, r"last frame 316 is incomplete \((11|12) of 29 bones, the file ends at line \d+\): "
+               r"--lossless cannot keep a partial frame", last + 1, functools.partial(read_amc, partial_last_frame="error"))
+    with pytest.raises(MocapFormatError, match="cannot keep a partial frame"):
+        parse_amc(path.read_bytes(), partial_last_frame="error")
+
+
+def test_partial_last_frame_mode_is_checked():
+    with pytest.raises(ValueError, match="partial_last_frame"):
+        parse_amc(AMC.read_bytes(), partial_last_frame="keep")
+
+
+# ------------------------------------------------------------------ AMC: size limits
+# The limits are made small here (monkeypatch) so the files stay small; both readers are
+# tried: the vectorised one on the file as it is, the line-by-line one with a comment added
+# after the last frame (which the vectorised reader leaves to it).
+
+
+def limited(monkeypatch, **limits):
+    for name, value in limits.items():
+        monkeypatch.setattr(amc_module, name, value)
+
+
+@pytest.mark.parametrize("exact", [False, True], ids=["fast", "exact"])
+def test_more_frames_than_a_clip_may_have(tmp_path, monkeypatch, exact):
+    limited(monkeypatch, MAX_FRAMES_PER_CLIP=200)
+    lines = amc_lines() + (["# comment"] if exact else [])
+    raises(write(tmp_path, lines), r"frame 201 makes the clip too long: more than the 200 frames a clip may have",
+           lines.index("201") + 1)
+    limited(monkeypatch, MAX_FRAMES_PER_CLIP=316)  # the clip's own length is fine
+    assert read_amc(write(tmp_path, lines)).n_frames == 316
+
+
+@pytest.mark.parametrize("exact", [False, True], ids=["fast", "exact"])
+def test_more_values_than_a_clip_may_have(tmp_path, monkeypatch, exact):
+    limited(monkeypatch, MAX_VALUES_PER_CLIP=62 * 100 + 61)  # room for 100 frames of 62 values
+    lines = amc_lines() + (["# comment"] if exact else [])
+    raises(write(tmp_path, lines), r"frame 101 makes the clip too long: more than the 6,261 values a clip may have "
+           r"\(62 per frame\)", lines.index("101") + 1)
+
+
+def test_more_values_per_frame_than_a_frame_may_have(tmp_path, monkeypatch):
+    limited(monkeypatch, MAX_VALUES_PER_FRAME=61)
+    raises(write(tmp_path, amc_lines()), r"frame 1 has 62 values, more than the 61 a frame may have", 4)
+
+
+def test_file_larger_than_a_clip_may_be_is_refused_unread(tmp_path, monkeypatch):
+    path = write(tmp_path, amc_lines())
+    limited(monkeypatch, MAX_AMC_BYTES=path.stat().st_size - 1)
+    raises(path, rf"file of {path.stat().st_size:,} bytes is larger than the {path.stat().st_size - 1:,} bytes an AMC "
+           r"file may have \(16 bytes for each of the 8,388,608 values a clip may hold\)", None)
+    with pytest.raises(MocapFormatError, match="is larger than"):
+        parse_amc(path.read_bytes())
+
+
+# ------------------------------------------------------------------ AMC: angles in radians
+
+
+def test_degrees_under_a_radians_header(tmp_path):
+    lines = amc_lines()
+    assert lines[2] == ":DEGREES"
+    lines[2] = ":RADIANS"
+    i = bone_index(lines, 40, "lfemur")
+    lines[i] = "lfemur 320 0 0"
+    raises(write(tmp_path, lines), r"angle 320 of bone 'lfemur' in frame 40 is beyond 314\.2 rad \(50 turns\): the "
+           r"values look like degrees, not the radians this ':RADIANS' line declares", 3, read_amc, read_asf(ASF))
+    lines[i] = f"lfemur {MAX_RADIANS} 0 0"  # the bound itself is an angle
+    assert read_amc(write(tmp_path, lines), read_asf(ASF)).values.max() == MAX_RADIANS
+    lines[bone_index(lines, 1, "root")] = "root 1000 2000 3000 0 0 0"  # translations are no angles
+    read_amc(write(tmp_path, lines), read_asf(ASF))
+
+
+def test_degrees_under_a_radians_skeleton(tmp_path):
+    asf = asf_lines()
+    asf[asf_index(asf, "angle deg")] = "  angle rad"
+    skeleton = read_asf(write_asf_lines(tmp_path, asf))
+    lines = amc_lines()
+    del lines[2]  # no :DEGREES: the skeleton's unit applies
+    i = bone_index(lines, 7, "rtibia")
+    lines[i] = "rtibia -400"
+    raises(write(tmp_path, lines), rf"angle -400 of bone 'rtibia' in frame 7 is beyond 314\.2 rad \(50 turns\): the "
+           rf"values look like degrees, not the radians the skeleton {re.escape(str(tmp_path))}/bad\.asf declares "
+           r"\('angle rad'\)", None, read_amc, skeleton)
+    assert read_amc(write(tmp_path, [":DEGREES"] + lines), skeleton).values.min() == -400  # the AMC's unit wins
 
 
 @pytest.mark.parametrize(
@@ -367,6 +455,55 @@ def test_asf_cycle(tmp_path):
     i = asf_index(lines, "lhipjoint lfemur")
     lines[i] = "    ltibia lfemur"  # lfemur -> ltibia -> lfemur, cut off from root
     raises(write_asf_lines(tmp_path, lines), r"cycle in ':hierarchy': lfemur <- ltibia <- lfemur", i + 1, read_asf)
+
+
+def test_asf_cycle_at_the_end_of_a_long_chain(tmp_path):
+    """The cycle check walks each bone once: 990 bones in a chain, the last two in a loop."""
+    lines = asf_lines()
+    h = asf_index(lines, ":hierarchy")
+    n = 990
+    lines[h:h] = [f"  begin\n     name c{k}\n     direction 0 1 0\n     length 0.1\n     axis 0 0 0  XYZ\n  end"
+                  for k in range(n)]
+    lines.insert(-2, "    rhand c0\n" + "\n".join(f"    c{k} c{k + 1}" for k in range(n - 2)))
+    lines.insert(-2, f"    c{n - 1} c{n - 1}")  # c19999's parent is itself, so the chain never gets back to root
+    path = write_asf_lines(tmp_path, lines)
+    last_line = path.read_text().split("\n").index(f"    c{n - 1} c{n - 1}") + 1
+    raises(path, rf"cycle in ':hierarchy': c{n - 1} <- c{n - 1}", last_line, read_asf)
+
+
+@pytest.mark.parametrize("value", ["0", "-0.45", "1e-300", "9.9e-7", "1.1e6"])
+def test_asf_units_length_out_of_range(tmp_path, value):
+    lines = asf_lines()
+    i = asf_index(lines, "length 0.45")
+    lines[i] = f"  length {value}"
+    raises(write_asf_lines(tmp_path, lines),
+           rf"units length {re.escape(value)} is outside \[1e-06, 1e\+06\] \(file lengths are inches x this factor\)",
+           i + 1, read_asf)
+
+
+def test_asf_units_length_bounds_are_inclusive(tmp_path):
+    lines = asf_lines()
+    i = asf_index(lines, "length 0.45")
+    lines[i] = "  length 1e6"
+    assert read_asf(write_asf_lines(tmp_path, lines)).length_scale == 1e6
+    lines[i] = "  length 1e-6"  # allowed, but it makes every bone kilometres long
+    raises(write_asf_lines(tmp_path, lines), r"bone 'lhipjoint' is .* cm long .*", asf_index(lines, "length 2.68184") + 1,
+           read_asf)
+
+
+def test_asf_bone_longer_than_a_bone_may_be(tmp_path):
+    lines = asf_lines()
+    i = asf_index(lines, "length 6.92462", asf_index(lines, "name lfemur"))  # 39 cm
+    cm_per_unit = 2.54 / 0.45
+    lines[i] = f"     length {0.999 * MAX_BONE_CM / cm_per_unit}"  # just within the bound: fine
+    assert read_asf(write_asf_lines(tmp_path, lines)).bone("lfemur").length * cm_per_unit == pytest.approx(0.999 * MAX_BONE_CM)
+    lines[i] = "     length 1e9"
+    raises(write_asf_lines(tmp_path, lines), r"bone 'lfemur' is 5\.64e\+09 cm long \(direction x length x 5\.64444 cm "
+           r"per unit\), longer than the 10000 cm a bone may be", i + 1, read_asf)
+    lines[i] = "     length 6.92462"
+    j = asf_index(lines, "direction 0.34202 -0.939693 0", asf_index(lines, "name lfemur"))
+    lines[j] = "     direction 1e4 0 0"  # the bone vector is direction x length
+    raises(write_asf_lines(tmp_path, lines), r"bone 'lfemur' is 3\.91e\+05 cm long .*", i + 1, read_asf)
 
 
 def test_asf_root_as_child(tmp_path):

@@ -40,6 +40,7 @@ def bounded(examples: int):
 # --------------------------------------------------------------------------- random skeletons and motions
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False)
+unit_range = st.floats(min_value=-1, max_value=1)  # direction components: bones stay within ASF's MAX_BONE_CM
 bone_names = st.from_regex(r"[a-z][a-z0-9_]{0,7}", fullmatch=True).filter(lambda name: name != "root")
 rotations = st.lists(st.sampled_from(["rx", "ry", "rz"]), unique=True, max_size=3).map(tuple)
 
@@ -51,7 +52,7 @@ def skeletons(draw) -> Skeleton:
     for i, name in enumerate(names):
         dof = draw(rotations)
         limits = [tuple(sorted(draw(st.tuples(finite, finite)))) for _ in dof] if draw(st.booleans()) else []
-        bones.append(Bone(name=name, id=i + 1, direction=np.array(draw(st.tuples(finite, finite, finite))),
+        bones.append(Bone(name=name, id=i + 1, direction=np.array(draw(st.tuples(unit_range, unit_range, unit_range))),
                           length=draw(st.floats(0, 100)), axis=np.array(draw(st.tuples(finite, finite, finite))),
                           dof=dof, limits=limits))
     parents = ["root"] + [draw(st.sampled_from(["root", *names[:i]])) for i in range(1, len(names))]

@@ -1,0 +1,24 @@
+"""`mcz` in a child process under an address-space limit and a timeout, for the hostile-input
+and hostile-archive tests: a regression that hangs or exhausts memory fails its test instead of
+stopping the suite or the machine. The limits only catch such faults: no case comes near them."""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+
+MEMORY_LIMIT = 2 << 30  # bytes of address space per child
+TIMEOUT = 60.0  # seconds
+
+
+def run_mcz(*args, cwd=None, memory: int = MEMORY_LIMIT) -> subprocess.CompletedProcess:
+    """`mcz ARGS` (run in `cwd`), its address space limited to `memory` bytes and its time to TIMEOUT."""
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
+
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    return subprocess.run([sys.executable, "-c", "from mocapzip.cli.main import main; main()", *map(os.fspath, args)],
+                          cwd=cwd, capture_output=True, text=True, timeout=TIMEOUT, preexec_fn=limit, env=env)

@@ -1,0 +1,67 @@
+"""Inputs that could hang `mcz` or exhaust memory (issue 13, items 1 and 14): FIFOs, a link to
+/dev/zero, files beyond the size limits, a skeleton of 20,000 bones.
+
+Each runs `mcz` in a child process with a timeout and an address-space limit, so a regression
+fails the test instead of hanging the suite or the machine. The timeouts only catch hangs:
+every case takes a few seconds at most.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+
+import pytest
+
+import hostile_inputs
+from limited import run_mcz
+
+def run_limited(folder, *args) -> subprocess.CompletedProcess:
+    """`mcz ARGS` run in `folder`, under the limits of `limited.run_mcz`."""
+    return run_mcz(*args, cwd=folder)
+
+
+@pytest.fixture(scope="module")
+def specials(tmp_path_factory, shared_data):
+    root = tmp_path_factory.mktemp("specials")
+    return root, hostile_inputs.build_specials(root, shared_data)
+
+
+def expected(case) -> str:
+    where = re.escape(case.file) + (f":{case.line}" if case.line is not None else "")
+    return rf"mcz: error: (.*/)?{where}: .*{re.escape(case.problem)}.*"
+
+
+def test_special_and_oversized_inputs_are_refused_in_one_line(specials, tmp_path):
+    root, cases = specials
+    failures = {}
+    for case in cases:
+        args = case.args + (["-o", tmp_path / "db.mcz", "-q"] if case.args[0] == "compress" else [])
+        result = run_limited(root / case.name, *args)
+        lines = result.stderr.splitlines()
+        if result.returncode != 1 or len(lines) != 1 or not re.fullmatch(expected(case), lines[0]) or result.stdout:
+            failures[f"{case.name}: mcz {' '.join(case.args)}"] = (result.returncode, result.stderr[-2000:])
+    assert failures == {}
+    assert os.listdir(tmp_path) == []
+
+
+def test_skip_bad_lists_the_special_file_and_keeps_the_good_clip(specials, tmp_path):
+    root, cases = specials
+    for case in (c for c in cases if c.skip):
+        result = run_limited(root / case.name, *case.args, "-o", tmp_path / f"{case.name}.mcz", "--skip-bad", "--json")
+        assert result.returncode == 0, (case.name, result.stderr)
+        summary = json.loads(result.stdout)
+        assert summary["clips"] == 1
+        (skipped,) = summary["skipped"]
+        assert skipped["path"] == case.skip and re.fullmatch(expected(case), "mcz: error: " + skipped["error"])
+        assert result.stderr.splitlines() == [f"mcz: warning: skipped {case.skip}: {skipped['error']}"]
+
+
+def test_a_chain_up_to_the_bone_limit_is_read(specials):
+    """The hierarchy checks are linear: a skeleton of 1,024 bones, most in one chain, is read."""
+    root, _ = specials
+    result = run_limited(root / "chain_up_to_the_bone_limit", "inspect", "--json", ".")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["total"]["frames"] == 148
