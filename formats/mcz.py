@@ -7,10 +7,13 @@ object per stream would dwarf small streams), described by one zstd-compressed J
 
 from __future__ import annotations
 
+import contextlib
+import io
 import itertools
 import json
 import os
 import secrets
+import stat
 import tempfile
 import zlib
 from collections.abc import Iterator, Mapping
@@ -19,14 +22,21 @@ from contextlib import contextmanager
 import h5py
 import numpy as np
 import zstandard
+from h5py import h5d, h5t
 
+from ..limits import MAX_DECODED_STREAM_BYTES
 from .errors import MocapFormatError
+from .text import open_regular_file
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
 
 FORMAT_VERSION = 4
 MAGIC = "MCZ mocapzip archive"
 _WRITE_BATCH = 1 << 20  # one h5py write per small stream costs ~50 us; batch them instead
+_ATTRIBUTES = ("magic", "format_version", "tool_version", "index_crc32", "header_crc32")
+_INDEX_KEYS = ("names", "offsets", "lengths", "crc32")
+# The index is a zstd-coded stream like any other: its stored bytes and its JSON obey the same limit.
+MAX_INDEX_BYTES = MAX_DECODED_STREAM_BYTES
 
 
 class ArchiveError(MocapFormatError):
@@ -52,19 +62,17 @@ def write_archive(
     directory = os.path.dirname(os.path.abspath(path))
     tmp = os.path.join(directory, f".{os.path.basename(path)}.tmp-{secrets.token_hex(6)}")
     with _failures_naming(path):
+        file = _HDF5Output(tmp, "x+")  # O_EXCL: never opens an existing name, nor follows a planted symlink
         try:
-            _write_hdf5(tmp, streams, tool_version)
-            fd = os.open(tmp, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-            if not overwrite and os.path.lexists(path):  # appeared while we were writing
-                raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
+            with file:
+                _write_hdf5(file, streams, tool_version)
+                if file.error:
+                    raise file.error
+                os.fsync(file.fileno())
+            _check_target(path, tool_version, overwrite)  # again: the target may have appeared meanwhile
             os.replace(tmp, path)
         except BaseException:  # also KeyboardInterrupt/SystemExit: never leave a temporary file
-            if os.path.lexists(tmp):
-                os.unlink(tmp)
+            os.unlink(tmp)
             raise
     if os.name == "posix":  # make the rename itself durable
         fd = os.open(directory, os.O_RDONLY)
@@ -79,7 +87,7 @@ def write_archive(
 def _failures_naming(path: str) -> Iterator[None]:
     """An I/O failure (e.g. a full disk) as one line naming the archive, not a temporary file.
 
-    HDF5 reports such failures in several lines naming the temporary file; a spool write names none.
+    The OSError of a failed write names the temporary file, or no file at all (the unnamed spool).
     """
     try:
         yield
@@ -90,10 +98,50 @@ def _failures_naming(path: str) -> Iterator[None]:
 
 
 def _check_target(path: str, tool_version, overwrite: bool) -> None:
+    """Refuse a bad tool_version, an existing `path` unless `overwrite`, and always a `path` that is a
+    device, FIFO or directory: renaming over it would replace /dev/null with an archive.
+
+    A symbolic link may be replaced: the rename replaces the link itself, never what it points to.
+    """
     if not isinstance(tool_version, str) or not tool_version or "\0" in tool_version:
         raise ValueError(f"tool_version must be a non-empty string without NUL, got {tool_version!r}")
-    if not overwrite and os.path.lexists(path):
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    if not overwrite:
         raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
+    if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
+        raise OSError(None, "not a regular file; refusing to replace it", path)
+
+
+class _HDF5Output(io.FileIO):
+    """The temporary archive as HDF5 writes it (h5py's file-object driver): a failed write is kept, not raised.
+
+    HDF5 does not survive a failed write: on a full disk its close failed half-way, left the file open
+    inside the library and the interpreter crashed at exit (segmentation fault). Told that every write
+    succeeded, HDF5 closes cleanly; `write_archive` then raises the first error as a plain OSError.
+    """
+
+    error: OSError | None = None
+
+    def write(self, data) -> int:
+        if self.error is None:
+            try:
+                view = memoryview(data).cast("B")
+                while view:  # a short write (the disk filling up) is followed by the error
+                    view = view[super().write(view) :]
+            except OSError as exc:
+                self.error = exc
+        return len(data)
+
+    def truncate(self, size: int | None = None) -> int:
+        if self.error is None:
+            try:
+                return super().truncate(size)
+            except OSError as exc:
+                self.error = exc
+        return size
 
 
 class SpooledStream:
@@ -152,7 +200,10 @@ class ArchiveWriter:
                              tool_version=self._tool_version, overwrite=self._overwrite)
 
     def close(self) -> None:
-        self._spool.close()
+        # The spool's bytes are thrown away: failing to flush them (a full disk) must not hide the
+        # error that stopped the work. The file is closed even then.
+        with contextlib.suppress(OSError):
+            self._spool.close()
 
     def __enter__(self) -> ArchiveWriter:
         return self
@@ -168,10 +219,10 @@ def _check_stream(name, value) -> None:
         raise TypeError(f"stream {name!r} must be bytes, got {type(value).__name__}")
 
 
-def _write_hdf5(tmp: str, streams: Mapping[str, bytes | SpooledStream], tool_version: str) -> None:
+def _write_hdf5(file: _HDF5Output, streams: Mapping[str, bytes | SpooledStream], tool_version: str) -> None:
     # meta_block_size=0 and "all metadata before any raw data" keep HDF5 from leaving 2 KB
     # half-empty aggregation blocks inside the file: the empty archive shrinks from ~2 KB to ~1 KB.
-    with h5py.File(tmp, "x", libver="latest", track_order=False, meta_block_size=0) as f:
+    with h5py.File(file, "x", libver="latest", track_order=False, meta_block_size=0) as f:
         items = list(streams.items())
         for name, value in items:
             _check_stream(name, value)
@@ -184,9 +235,10 @@ def _write_hdf5(tmp: str, streams: Mapping[str, bytes | SpooledStream], tool_ver
             "lengths": lengths,
             "crc32": [v.crc32 if isinstance(v, SpooledStream) else zlib.crc32(v) for v in values],
         }
-        index = zstandard.ZstdCompressor(level=19).compress(
-            json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode()
-        )
+        index_json = json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode()
+        if len(index_json) > MAX_INDEX_BYTES:  # readers refuse it: never write it
+            raise ValueError(f"the index of {len(items)} streams exceeds {MAX_INDEX_BYTES} bytes")
+        index = zstandard.ZstdCompressor(level=19).compress(index_json)
         index_crc32 = zlib.crc32(index)
         tool_bytes = tool_version.encode()
 
@@ -221,6 +273,30 @@ def _write_payload(dataset: h5py.Dataset, values: list[memoryview | SpooledStrea
         flush()
 
 
+def _dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
+    """What, if anything, makes `ds` other than a 1-D uint8 array stored contiguously in this file."""
+    plist, dtype = ds.id.get_create_plist(), ds.id.get_type()
+    layout = plist.get_layout()
+    if layout == h5d.VIRTUAL:
+        return "is a virtual dataset"
+    if plist.get_external_count():
+        return "is stored in external files"
+    if layout != h5d.CONTIGUOUS:  # filters (compression, shuffle, checksums) come with chunks
+        return f"is {'chunked' if layout == h5d.CHUNKED else 'compact'}, not contiguous"
+    if dtype.get_class() != h5t.INTEGER or dtype.get_size() != 1 or dtype.get_sign() != h5t.SGN_NONE:
+        return f"has type {ds.dtype}, not uint8"
+    if ds.ndim != 1:
+        return f"has shape {ds.shape}, not 1-D"
+    if plist.fill_value_defined() != h5d.FILL_VALUE_DEFAULT:
+        return "has a fill value"
+    if ds.attrs:
+        return "has attributes"
+    offset = ds.id.get_offset()  # None: no storage allocated
+    if ds.shape[0] and (offset is None or offset + ds.shape[0] > file_size):  # also bounds any allocation
+        return f"has {ds.shape[0]} bytes, not stored within the file's {file_size}"
+    return None
+
+
 @contextmanager
 def _section(path: str, section: str) -> Iterator[None]:
     """Turn whatever h5py/HDF5 raises on a damaged file (OSError, KeyError, ValueError, ...) into ArchiveError."""
@@ -240,9 +316,10 @@ class ArchiveReader:
 
     def __init__(self, path: str | os.PathLike):
         self.path = os.fspath(path)
-        with open(self.path, "rb"):  # missing file / permissions: the plain OSError, not "damaged"
-            pass
-        file_size = os.path.getsize(self.path)
+        # A missing file or no permission: the plain OSError, not "damaged". A FIFO or a device
+        # (symbolic links followed) is refused without blocking: HDF5 would wait on it forever.
+        with open_regular_file(self.path) as file:
+            file_size = os.fstat(file.fileno()).st_size
         with _section(self.path, "header"):
             self._file = h5py.File(self.path, "r")
         try:
@@ -268,30 +345,73 @@ class ArchiveReader:
                     f"header: archive format_version {self.format_version} is newer than this mocapzip "
                     f"supports (up to {FORMAT_VERSION}); upgrade mocapzip to read it"
                 )
-            self.tool_version = bytes(f.attrs["tool_version"]).decode()
-            index_crc32, header_crc32 = (f.attrs[key] for key in ("index_crc32", "header_crc32"))
+            index_ds, payload_ds = self._datasets(file_size)
+            tool_version, index_crc32, header_crc32 = (f.attrs[key] for key in _ATTRIBUTES[2:])
+            if not isinstance(tool_version, bytes):
+                raise self._error(f"header: tool_version is {type(tool_version).__name__}, not a string")
+            self.tool_version = tool_version.decode()
             if _header_crc(self.format_version, self.tool_version, index_crc32) != header_crc32:
                 raise self._error("header: CRC32 mismatch in the root attributes")
-            index_ds, payload_ds = f["index"], f["payload"]
-            for ds in (index_ds, payload_ds):  # bounds first: a damaged shape must not allocate gigabytes
-                if ds.dtype != np.uint8 or ds.ndim != 1 or ds.shape[0] > file_size:
-                    raise self._error(f"header: dataset {ds.name} has dtype {ds.dtype}, shape {ds.shape}")
         with _section(self.path, "index"):
+            if index_ds.shape[0] > MAX_INDEX_BYTES:
+                raise self._error(f"index: {index_ds.shape[0]} bytes stored, more than the limit of {MAX_INDEX_BYTES}")
             index = index_ds[:].tobytes()
             if zlib.crc32(index) != index_crc32:
                 raise self._error("index: CRC32 mismatch")
-            doc = json.loads(zstandard.ZstdDecompressor().decompress(index))
-            names, offsets, lengths = doc["names"], doc["offsets"], doc["lengths"]
-            self._names = names
-            self._entries = dict(zip(names, zip(offsets, lengths, doc["crc32"], strict=True), strict=True))
-            if len(self._entries) != len(names) or not all(isinstance(name, str) and name for name in names):
-                raise self._error("index: stream names must be unique non-empty strings")
+            size = zstandard.frame_content_size(index)  # checked before anything is decompressed
+            if size < 0:
+                raise self._error("index: the zstd frame does not state its size")
+            if size > MAX_INDEX_BYTES:
+                raise self._error(f"index: unpacks to {size} bytes, more than the limit of {MAX_INDEX_BYTES}")
+            doc = json.loads(zstandard.ZstdDecompressor().decompress(index, allow_extra_data=False))
+            self._names, offsets, lengths, crcs = self._index_columns(doc)
+            self._entries = dict(zip(self._names, zip(offsets, lengths, crcs)))
             starts = [0, *itertools.accumulate(lengths)]
-            if starts[:-1] != offsets or min(lengths, default=0) < 0:
+            if starts[:-1] != offsets:
                 raise self._error("index: streams are not stored back to back")
             if starts[-1] != payload_ds.shape[0]:
                 raise self._error(f"index: streams need {starts[-1]} bytes, payload has {payload_ds.shape[0]}")
         self._payload = payload_ds
+
+    def _datasets(self, file_size: int) -> tuple[h5py.Dataset, h5py.Dataset]:
+        """Datasets `index` and `payload`, once the root is found to hold nothing the format does not define.
+
+        Checked before any data is read: HDF5 can take a dataset's bytes from other files (external
+        storage, virtual datasets, external links), which may be a FIFO or /dev/zero, and decode
+        them with filters (plugins); `read` relies on `payload` being one contiguous run of this file.
+        """
+        f = self._file
+        for kind, present, expected in (("attribute", f.attrs, _ATTRIBUTES), ("item", f, ("index", "payload"))):
+            odd = sorted(set(present) ^ set(expected))  # names only: listing no link resolves it
+            if odd:
+                state = "missing" if odd[0] in expected else "not in the format"
+                raise self._error(f"header: root {kind} {odd[0]!r} is {state}")
+        datasets = []
+        for name in ("index", "payload"):
+            link = f.get(name, getlink=True)
+            if not isinstance(link, h5py.HardLink):  # resolving a soft or external link could open any file
+                raise self._error(f"header: {name} is not a dataset but a link ({type(link).__name__})")
+            ds = f[name]
+            problem = "is not a dataset" if not isinstance(ds, h5py.Dataset) else _dataset_problem(ds, file_size)
+            if problem:
+                raise self._error(f"header: {name} {problem}")
+            datasets.append(ds)
+        return datasets[0], datasets[1]
+
+    def _index_columns(self, doc) -> tuple[list[str], list[int], list[int], list[int]]:
+        """The index's four columns, once their types are checked (a damaged index must not raise TypeError)."""
+        if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
+            raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}")
+        names, offsets, lengths, crcs = columns = [doc[key] for key in _INDEX_KEYS]
+        if not all(isinstance(column, list) and len(column) == len(names) for column in columns):
+            raise self._error(f"index: {', '.join(_INDEX_KEYS)} must be lists of equal length")
+        if not all(isinstance(name, str) and name for name in names) or len(set(names)) != len(names):
+            raise self._error("index: stream names must be unique non-empty strings")
+        if not all(type(n) is int and n >= 0 for n in offsets + lengths):
+            raise self._error("index: offsets and lengths must be non-negative integers")
+        if not all(type(crc) is int and 0 <= crc < 1 << 32 for crc in crcs):
+            raise self._error("index: crc32 values must be integers from 0 to 2**32 - 1")
+        return names, offsets, lengths, crcs
 
     def names(self) -> list[str]:
         """Stream names in stored order."""

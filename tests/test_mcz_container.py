@@ -198,10 +198,27 @@ def test_not_an_archive(tmp_path):
         ({"names": ["a", "a"], "offsets": [0, 1], "lengths": [1, 1], "crc32": [0, 0]}, "unique"),
         ({"names": ["a", "b"], "offsets": [0, 2], "lengths": [1, 1], "crc32": [0, 0]}, "back to back"),
         ({"names": ["a"], "offsets": [0], "lengths": [1], "crc32": [0]}, "need 1 bytes, payload has 2"),
+        # wrong JSON types: an `index: ...` error, never a TypeError from deep inside the reader
+        ([["x"], [0], [2], [0]], "not a JSON object with exactly the keys names, offsets, lengths, crc32"),
+        ({"names": ["x"], "offsets": [0], "lengths": [2]}, "not a JSON object with exactly the keys"),
+        ({"names": ["x"], "offsets": [0], "lengths": [2], "crc32": [0], "more": []}, "not a JSON object"),
+        ({"names": "x", "offsets": [0], "lengths": [2], "crc32": [0]}, "must be lists of equal length"),
+        ({"names": ["x"], "offsets": {"0": 0}, "lengths": [2], "crc32": [0]}, "must be lists of equal length"),
+        ({"names": ["x", "y"], "offsets": [0], "lengths": [2], "crc32": [0]}, "must be lists of equal length"),
+        ({"names": [7], "offsets": [0], "lengths": [2], "crc32": [0]}, "unique non-empty strings"),
+        ({"names": [["x"]], "offsets": [0], "lengths": [2], "crc32": [0]}, "unique non-empty strings"),
+        ({"names": [""], "offsets": [0], "lengths": [2], "crc32": [0]}, "unique non-empty strings"),
+        ({"names": ["x"], "offsets": [0.0], "lengths": [2], "crc32": [0]}, "non-negative integers"),
+        ({"names": ["x"], "offsets": [False], "lengths": [2], "crc32": [0]}, "non-negative integers"),
+        ({"names": ["x"], "offsets": [0], "lengths": ["2"], "crc32": [0]}, "non-negative integers"),
+        ({"names": ["x", "y"], "offsets": [0, 3], "lengths": [3, -1], "crc32": [0, 0]}, "non-negative integers"),
+        ({"names": ["x"], "offsets": [0], "lengths": [2], "crc32": [-1]}, "crc32 values must be integers"),
+        ({"names": ["x"], "offsets": [0], "lengths": [2], "crc32": [1 << 32]}, "crc32 values must be integers"),
+        ({"names": ["x"], "offsets": [0], "lengths": [2], "crc32": [None]}, "crc32 values must be integers"),
     ],
 )
 def test_checksummed_but_inconsistent_index_refused(tmp_path, doc, problem):
-    """A writer bug must not turn into wrong reads, even when every CRC matches."""
+    """A writer bug or a hostile index must not turn into wrong reads, even when every CRC matches."""
     path = tmp_path / "bad.mcz"
     write_archive(path, {"x": b"12"}, tool_version="1")
     index = zstandard.ZstdCompressor().compress(json.dumps(doc).encode())
