@@ -14,7 +14,9 @@ from ..formats.errors import MocapFormatError
 
 
 def _fail(message: str) -> None:
-    click.echo(f"mcz: error: {message}", err=True)
+    """One line, whatever the message holds: a name from a file may carry line breaks."""
+    one_line = message.encode("unicode_escape", "backslashreplace").decode("ascii") if not message.isprintable() else message
+    click.echo(f"mcz: error: {one_line}", err=True)
     sys.exit(1)
 
 

@@ -188,6 +188,15 @@ def info(archive_path, as_json):
     click.echo(f"{len(report['clips'])} clips, {report['frames']} frames, {report['bytes']:,} bytes "
                f"({report['bytes_per_frame']:.2f} bytes/frame), worst clip error {report['worst_error_cm']:.3f} cm")
     click.echo("streams: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(report["stream_bytes"].items())))
+    if report["skipped"]:
+        click.echo(f"not in the archive, skipped by compress --skip-bad: {len(report['skipped'])}")
+        for skip in report["skipped"]:
+            click.echo(f"  {skip['path']}: {skip['error']}")
+    dropped = [c for c in report["clips"] if "dropped_frames" in c]
+    if dropped:
+        click.echo(f"not in the archive, incomplete last frames of truncated inputs: {report['dropped_frames']}")
+        for clip in dropped:
+            click.echo(f"  {clip['path']}: {clip['dropped_frames']}")
     for c in report["classes"]:
         click.echo(f"  class {c['name']}: {c['clips']} clips, {c['frames']} frames, {c['components']} components")
     for group in report["auto_classes"]:

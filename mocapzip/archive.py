@@ -14,6 +14,7 @@ from __future__ import annotations
 import fnmatch
 import json
 import os
+import secrets
 import time
 from collections import defaultdict
 from dataclasses import asdict, dataclass, field, replace
@@ -26,16 +27,20 @@ from .autoclass import auto_classes, parse_auto
 from .classes import class_namer
 from .clip import ClipReader, ClipsOnDemand, LoadedClip, channels_from, pose_weights, skeleton_params
 from .codec import get_stage
-from .codec.coefficients import Priors
+from .codec.coefficients import Priors, check_matrix_shape
 from .codec.entropy import decode_bytes, encode_bytes
 from .codec.lossless import decode_channels, encode_channels
 from .codec.pca import CovarianceAccumulator
 from .formats.amc import AmcStyle, Motion, format_amc
 from .formats.asf import parse_asf
 from .formats.errors import MocapFormatError
+from .formats.text import MAX_ABS_VALUE, open_regular_file
 from .formats.mcz import ArchiveError, ArchiveReader, ArchiveWriter
 from .inputs import ClipSource, find_clips, record_skip
-from .lossy import ClassBasis, CodedClip, code_clip, encode_class, interim_coder, reconstruct
+from .meta import parse_json
+from .meta import validate as validate_meta
+from .limits import MAX_COEFFICIENTS_PER_MATRIX
+from .lossy import ClassBasis, CodedClip, TargetError, code_clip, encode_class, interim_coder, reconstruct
 from .skeleton import ChannelLayout, SkeletonModel
 from .progress import progress
 from .representations.base import Encoded
@@ -92,13 +97,15 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     sources = find_clips(inputs, asf=asf, skipped=skipped)
     if not sources and not skipped:
         raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, inputs)))
+    _refuse_input_as_output(output, [p for s in sources for p in (s.amc, s.asf)]
+                            + [p for p in (asf, settings.classes) if p is not None and os.path.isfile(p)])
     keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
     reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
                         None if keeps_all else cache_bytes, settings.axes_from_positions)
     with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
         scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all)
         if not scan.sources:
-            raise MocapFormatError(f"nothing to compress: all {len(skipped)} clips were skipped",
+            raise MocapFormatError(f"nothing to compress: all {len(skipped)} inputs were skipped",
                                    ", ".join(map(os.fspath, inputs)))
         sources, rows = scan.sources, scan.rows
         skeleton_paths = sorted({s.asf for s in sources})  # only the skeletons of the clips kept
@@ -135,7 +142,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
             meta["skipped"] = skipped
         order = ["meta", "skeletons", *sorted(writer.names)]
         writer.add("meta", encode_bytes(json.dumps(meta, sort_keys=True).encode()))
-        writer.add("skeletons", encode_bytes(json.dumps([p.read_bytes().decode("latin-1")
+        writer.add("skeletons", encode_bytes(json.dumps([_file_bytes(p).decode("latin-1")
                                                          for p in skeleton_paths]).encode()))
         size = writer.commit(order)
     frames = sum(r["frames"] for r in rows)
@@ -150,6 +157,21 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "seconds": time.perf_counter() - started,
         "skipped": skipped or [],
     }
+
+
+def _file_bytes(path) -> bytes:
+    with open_regular_file(path) as file:
+        return file.read()
+
+
+def _refuse_input_as_output(output, inputs: list) -> None:
+    """`-o` naming one of the inputs (or a link to it) would replace it with the archive, even with -f."""
+    if not os.path.exists(output):
+        return
+    target = os.stat(output)
+    for path in inputs:
+        if path is not None and os.path.samestat(target, os.stat(path)):
+            raise MocapFormatError(f"is also an input ({path}); refusing to replace it, even with -f", output)
 
 
 @dataclass
@@ -178,6 +200,8 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
     for source in progress(sources, desc="read", unit="clip"):
         try:
             clip = reader.read(source)
+            if not settings.lossless:
+                _check_codable(clip)
         except (MocapFormatError, OSError) as exc:
             if skipped is None:
                 raise
@@ -196,6 +220,16 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
             reader.keep(clip)
         scan.sources.append(source)
     return scan
+
+
+def _check_codable(clip: LoadedClip) -> None:
+    """Refuse a clip whose coefficients (frames x pose values) or class basis (pose values x at
+    most as many components) would pass the limits every reader holds to: never write what
+    cannot be read back."""
+    frames, width = clip.poses.shape
+    if max(frames, width) * width > MAX_COEFFICIENTS_PER_MATRIX:
+        raise MocapFormatError(f"{frames:,} frames of {width:,} pose values are more than a lossy archive may hold "
+                               f"({MAX_COEFFICIENTS_PER_MATRIX:,} per matrix); use --lossless", clip.source.amc)
 
 
 @dataclass
@@ -336,7 +370,8 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
                                  for unit_clip, c in zip(unit_clips, coded)))
         payloads = [code.payload(coder) for code in codes]
     else:
-        raise RuntimeError(f"{row['path']}: segments joined to {mean_err:.4f} cm, above {settings.error_cm} cm")
+        raise TargetError(f"segments joined to {mean_err:.4f} cm, above {settings.error_cm:g} cm; use a larger -e",
+                          clip.source.amc)
     streams, segments = {}, []
     for s, (unit, c, payload, (seg_mean, seg_max)) in enumerate(zip(units, coded, payloads, errors)):
         name = f"clip/{index:05d}/{s:03d}"
@@ -360,7 +395,7 @@ def _joined(decoded: list, cores: list[tuple[int, int]], n_frames: int, overlap:
 def _clip_row(clip: LoadedClip) -> dict:
     """A clip's row in meta as far as the clip itself tells (its skeleton, class and errors come later)."""
     m = clip.motion
-    return {
+    row = {
         "path": clip.source.relpath,
         "frames": m.n_frames,
         "first_frame": int(m.frame_numbers[0]) if m.n_frames else 1,
@@ -370,6 +405,9 @@ def _clip_row(clip: LoadedClip) -> dict:
         "angle_unit": clip.layout.angle_unit,
         "style": asdict(m.style),  # how the source wrote numbers and lines, to write it back alike
     }
+    if m.dropped_frames:  # an incomplete last frame left out: the archive says so, not only a warning
+        row["dropped_frames"] = m.dropped_frames
+    return row
 
 
 class Archive:
@@ -380,12 +418,14 @@ class Archive:
         self._reader = ArchiveReader(path)
         try:
             self.meta = self._json("meta")
-            # fields older formats did not have, as those formats meant them
-            self.settings = Settings(**{"coefficient_coder": "zstd", "axes_from_positions": False, **self.meta["settings"]})
-        except (KeyError, TypeError, ValueError) as exc:
+            # every file a full decompress writes, each path checked to stay inside the output folder
+            self.files = validate_meta(self.meta, self._reader.names(), self.path)
+            self._skeleton_texts = self._skeletons()
+        except BaseException:
             self._reader.close()
-            raise ArchiveError(f"meta: invalid ({exc})", self.path) from exc
-        self._skeleton_texts = None
+            raise
+        # fields older formats did not have, as those formats meant them
+        self.settings = Settings(**{"coefficient_coder": "zstd", "axes_from_positions": False, **self.meta["settings"]})
         self._priors: Priors | None = None
         self._bases: dict[int, ClassBasis] = {}
         self._models: dict[int, SkeletonModel] = {}
@@ -393,10 +433,10 @@ class Archive:
 
     def _json(self, name):
         try:
-            return json.loads(decode_bytes(self._reader.read(name)))
+            return parse_json(decode_bytes(self._reader.read(name)))
         except KeyError:
             raise ArchiveError(f"{name}: stream missing", self.path) from None
-        except ValueError as exc:
+        except ValueError as exc:  # also bad UTF-8 and bad JSON
             raise ArchiveError(f"{name}: {exc}", self.path) from exc
 
     def __enter__(self):
@@ -409,9 +449,16 @@ class Archive:
     def clips(self) -> list[dict]:
         return self.meta["clips"]
 
+    def _skeletons(self) -> list[str]:
+        """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
+        texts = self._json("skeletons")
+        if not (isinstance(texts, list) and len(texts) == len(self.meta["skeletons"])
+                and all(isinstance(t, str) and max(t, default="\0") <= "\xff" for t in texts)):
+            raise ArchiveError(f"skeletons: expected {len(self.meta['skeletons'])} ASF texts, as meta lists",
+                               self.path)
+        return texts
+
     def skeleton_text(self, index: int) -> str:
-        if self._skeleton_texts is None:
-            self._skeleton_texts = self._json("skeletons")
         return self._skeleton_texts[index]
 
     @property
@@ -433,11 +480,11 @@ class Archive:
         row = self.clips[index]
         name = f"clip/{index:05d}"
         try:
+            model = self._model(row["skeleton"])
+            layout = model.layout(ChannelLayout(tuple(row["bones"]), tuple(row["counts"]), row["angle_unit"]))
             if self.settings.lossless:
                 values = decode_channels(self._reader.read(name))
             else:
-                model = self._model(row["skeleton"])
-                layout = model.layout(ChannelLayout(tuple(row["bones"]), tuple(row["counts"]), row["angle_unit"]))
                 name_ = self.settings.representation
                 if "segments" in row:  # --segment: the segments joined, then turned into channels in one go
                     decoded, cores = [], []
@@ -453,23 +500,45 @@ class Archive:
                 params = {**skeleton_params(model, name_, layout),
                           "twist": flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])}
                 values = channels_from(model, name_, layout, poses, root, params, self.settings.axes_from_positions)
-        except (ValueError, KeyError, IndexError, EOFError) as exc:
+        except ArchiveError:
+            raise
+        except (ValueError, KeyError, IndexError, EOFError, MocapFormatError) as exc:
             raise ArchiveError(f"{name} ({row['path']}): damaged ({exc})", self.path) from exc
         if values.shape != (row["frames"], sum(row["counts"])):
             raise ArchiveError(f"{name} ({row['path']}): decoded shape {values.shape} does not match", self.path)
         frames = np.arange(row["first_frame"], row["first_frame"] + row["frames"])
         return Motion(row["bones"], row["counts"], values, frames, row["header"], row["path"], AmcStyle(**row["style"]))
 
+    def file_bytes(self, kind: str, index: int) -> bytes:
+        """The bytes `decompress` writes for an entry of `files`: ("amc", clip) or ("asf", skeleton).
+
+        An AMC that mcz could not read back (values it refuses) is an error here, not a file.
+        """
+        if kind == "asf":
+            return self.skeleton_text(index).encode("latin-1")
+        motion = self.decode(index)
+        if not np.all(np.abs(motion.values) <= MAX_ABS_VALUE):
+            raise ArchiveError(f"clip/{index:05d} ({motion.path}): damaged (decoded values beyond "
+                               f"+-{MAX_ABS_VALUE:g}, which no AMC reader accepts)", self.path)
+        return format_amc(motion).encode(motion.style.encoding)
+
     def _reconstruct(self, stream: str, class_index: int, n_frames: int):
         """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
         basis = self._basis(class_index)
+        check_matrix_shape(n_frames, basis.mean.size)  # the decoded poses: bounded before they are made
         coded = CodedClip.from_payload(self._reader.read(stream), self.settings.coefficient_coder,
                                        [(n_frames, basis.q), (n_frames, 4)], self.priors)
         return reconstruct(coded, basis, self._transform, self.settings.dead_zone, n_frames)
 
     def _model(self, k: int) -> SkeletonModel:
         if k not in self._models:
-            self._models[k] = SkeletonModel.from_asf(parse_asf(self.skeleton_text(k).encode("latin-1"), f"skeleton {k}"))
+            try:
+                asf = parse_asf(self.skeleton_text(k).encode("latin-1"), self.meta["skeletons"][k]["name"])
+                self._models[k] = SkeletonModel.from_asf(asf)
+            except (MocapFormatError, ValueError) as exc:
+                if isinstance(exc, ArchiveError):
+                    raise
+                raise ArchiveError(f"skeletons: skeleton {k} is not a valid ASF ({exc})", self.path) from exc
         return self._models[k]
 
     def _basis(self, k: int) -> ClassBasis:
@@ -501,47 +570,61 @@ class Archive:
                 raise ArchiveError(f"{exc.message} (clip {clip})", self.path) from exc
 
     def verify(self) -> None:
-        """Check every stream's checksum and decode every clip (`mcz test`)."""
+        """Check every stream's checksum and make every file a full `decompress` writes, in memory
+        (`mcz test`): an archive that passes decompresses, disk space and permissions aside."""
         self.verify_checksums()
-        for i in progress(range(len(self.clips)), desc="test", unit="clip"):
-            self.decode(i)
+        for kind, index in progress(list(self.files.values()), desc="test", unit="file"):
+            self.file_bytes(kind, index)
 
 
 def decompress(archive_path, out_dir, patterns=(), force: bool = False) -> dict:
-    """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`."""
+    """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`.
+
+    Every path comes from the archive's meta, checked on opening to be relative, free of '.'
+    and '..' and unique (`meta.validate`); each file is also refused if its folder resolves
+    outside `out_dir` through a symbolic link already there.
+    """
     out = Path(out_dir)
     with Archive(archive_path) as archive:
         archive.verify_checksums()  # a damaged archive is refused before any file is written
-        chosen = [i for i, row in enumerate(archive.clips)
-                  if not patterns or any(fnmatch.fnmatch(row["path"], p) for p in patterns)]
+        chosen = {i for i, row in enumerate(archive.clips)
+                  if not patterns or any(fnmatch.fnmatch(row["path"], p) for p in patterns)}
         if not chosen:
             raise MocapFormatError(f"no clip matches {', '.join(patterns)}", archive_path)
-        targets = {}
-        for i in chosen:
-            row = archive.clips[i]
-            targets[out / row["path"]] = ("amc", i)
-            skeleton_name = archive.meta["skeletons"][row["skeleton"]]["name"]
-            targets.setdefault(out / PurePosixPath(row["path"]).parent / skeleton_name, ("asf", row["skeleton"]))
-        existing = [p for p in targets if p.exists()]
+        folders = {PurePosixPath(archive.clips[i]["path"]).parent for i in chosen}
+        targets = {out.joinpath(*path.split("/")): (kind, index) for path, (kind, index) in archive.files.items()
+                   if (index in chosen if kind == "amc" else PurePosixPath(path).parent in folders)}
+        root = os.path.realpath(out)
+        for path in targets:
+            if os.path.commonpath([root, os.path.realpath(path.parent)]) != root:
+                raise MocapFormatError("its folder leads outside the output folder through a symbolic link; "
+                                       "refusing to write it", path)
+        existing = [p for p in targets if os.path.lexists(p)]
         if existing and not force:
             raise FileExistsError(None, "already exists", os.fspath(existing[0]))
         frames = 0
         for path, (kind, index) in progress(list(targets.items()), desc="decompress", unit="file"):
-            if kind == "asf":
-                _write_atomically(path, archive.skeleton_text(index).encode("latin-1"))
-            else:
-                motion = archive.decode(index)
-                frames += motion.n_frames
-                _write_atomically(path, format_amc(motion).encode(motion.style.encoding, errors="replace"))
+            _write_atomically(path, archive.file_bytes(kind, index))
+            frames += archive.clips[index]["frames"] if kind == "amc" else 0
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
 
 
 def _write_atomically(path: Path, data: bytes) -> None:
-    """Temp file then rename: an interrupted run never leaves half an AMC behind."""
+    """A new file under a random name, created exclusively (never through a link planted there),
+    then renamed over `path`: an interrupted run never leaves half an AMC behind."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp = path.with_name(f".mcz-{secrets.token_hex(8)}.tmp")
     try:
-        tmp.write_bytes(data)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
+    except OSError as exc:
+        raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
+    try:
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+        finally:
+            os.close(fd)
         os.replace(tmp, path)
     except BaseException as exc:
         tmp.unlink(missing_ok=True)
@@ -575,12 +658,15 @@ def info(archive_path) -> dict:
         "stream_bytes": dict(stream_sizes),
         "worst_error_cm": max((r["error_cm"] for r in meta["clips"]), default=0.0),
         "skipped": meta.get("skipped", []),  # clips left out by compress --skip-bad
+        "dropped_frames": sum(r.get("dropped_frames", 0) for r in meta["clips"]),  # of truncated inputs
     }
 
 
 def _info_row(row: dict) -> dict:
     """A clip as `info` lists it; a segmented take (--segment) with its segments' frames, classes and errors."""
     out = {k: row[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")}
+    if "dropped_frames" in row:
+        out["dropped_frames"] = row["dropped_frames"]
     if "segments" in row:
         out["segments"] = [{k: s[k] for k in ("first", "frames", "class", "error_cm", "max_error_cm")}
                            for s in row["segments"]]

@@ -34,7 +34,7 @@ from .codec.entropy import decode_ints, encode_ints, encode_sparse
 from .codec.pca import CovarianceAccumulator, PcaBasis
 from .codec.quantise import UniformQuantiser
 from .formats.errors import MocapFormatError
-from .limits import MAX_COEFFICIENTS_PER_MATRIX
+from .limits import MAX_VALUES_PER_CLIP
 from .search import largest_step, smallest_count
 
 YAW_RADIUS_CM = 50.0  # a typical joint's distance from the root: yaw error x this = cm
@@ -225,9 +225,11 @@ class CodedClip:
             arrays = decode_matrices(blob[8:], shapes, priors)
         else:
             pos, arrays = 17, []
-            for _ in range(count):
+            # format 1: each matrix at most the values its expected shape holds (unknown: an AMC clip's)
+            most = [math.prod(shape) for shape in shapes] if shapes is not None else [MAX_VALUES_PER_CLIP] * count
+            for k in range(count):
                 (size,) = _unpack("<I", blob, pos)
-                arrays.append(decode_ints(blob[pos + 4 : pos + 4 + size], MAX_COEFFICIENTS_PER_MATRIX))
+                arrays.append(decode_ints(blob[pos + 4 : pos + 4 + size], most[k]))
                 pos += 4 + size
                 if arrays[-1].ndim != 2:
                     raise ValueError(f"clip payload holds a matrix of shape {arrays[-1].shape}")

@@ -1,0 +1,274 @@
+"""The archive's `meta` stream: its schema, and every check a reader makes before using it.
+
+Meta comes from a file that may come from anyone, so nothing in it is used until it has
+passed `validate`: a JSON Schema for shapes and types (`SCHEMA`, compiled once), then the
+checks a schema cannot state: indices in range, sizes within `limits`, and output paths
+that stay inside the folder the user named (docs/format.md, "Limits" and "Paths").
+A failure is one `ArchiveError` naming the archive and the field.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import fastjsonschema
+import pywt
+
+from .formats.amc import MAX_FRAME_NUMBER
+from .formats.mcz import ArchiveError
+from .limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
+from .representations import NAMES as REPRESENTATIONS
+
+MAX_NAME_BYTES = 255  # one path component: what POSIX file systems allow
+MAX_DOF_PER_BONE = 7  # an ASF bone's channels: rx ry rz tx ty tz l
+
+_COUNT = {"type": "integer", "minimum": 0}
+_ERROR = {"type": "number", "minimum": 0}
+_POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+_NEWLINE = {"enum": ["\n", "\r\n", "\r"]}
+_STRING = {"type": "string"}
+
+
+def _record(required: dict, optional: dict | None = None) -> dict:
+    """An object with exactly these fields: unknown ones are refused, not ignored."""
+    return {"type": "object", "required": list(required), "additionalProperties": False,
+            "properties": {**required, **(optional or {})}}
+
+
+_STYLE = _record({
+    "notation": {"enum": ["g", "f"]},
+    "digits": {"type": "integer", "minimum": 0, "maximum": 40},
+    "exponent_digits": {"type": "integer", "minimum": 1, "maximum": 4},
+    "name_separator": {"type": "string", "pattern": "^[ \t]{1,16}$"},
+    "newline": _NEWLINE,
+    "header_newline": {"anyOf": [_NEWLINE, {"type": "null"}]},
+    "frame_newline": {"anyOf": [_NEWLINE, {"type": "null"}]},
+    "final_newline": {"type": "boolean"},
+    "encoding": {"enum": ["utf-8", "latin-1"]},
+})
+
+_SEGMENT = _record({
+    "first": _COUNT, "frames": {"type": "integer", "minimum": 1}, "class": _COUNT, "stream": _STRING,
+    "error_cm": _ERROR, "max_error_cm": _ERROR,
+})
+
+_CLIP = _record(
+    {
+        "path": _STRING,
+        "frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
+        "first_frame": {"type": "integer", "minimum": 0, "maximum": MAX_FRAME_NUMBER},
+        "header": {"type": "array", "items": _STRING},
+        "bones": {"type": "array", "minItems": 1, "maxItems": MAX_BONES_PER_SKELETON + 1,
+                  "items": {"type": "string", "pattern": r"^\S+$"}},
+        "counts": {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": MAX_DOF_PER_BONE}},
+        "angle_unit": {"enum": ["deg", "rad"]},
+        "style": _STYLE,
+        "skeleton": _COUNT,
+        "class": _COUNT,
+        "error_cm": _ERROR,
+        "max_error_cm": _ERROR,
+    },
+    {
+        "dropped_frames": {"type": "integer", "minimum": 1},
+        "twist_flips": {"type": "object", "additionalProperties": {"type": "array", "items": _COUNT}},
+        "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
+        "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
+    },
+)
+
+_TRANSFORM = {"anyOf": [
+    _record({"id": {"const": "dct"}}),
+    _record({"id": {"const": "identity"}}),
+    _record({"id": {"const": "dwt"}, "wavelet": _STRING,
+             "level": {"anyOf": [{"type": "integer", "minimum": 0, "maximum": 32}, {"type": "null"}]}}),
+]}
+
+_SETTINGS = _record(
+    {
+        "error_cm": _POSITIVE,
+        "representation": {"enum": list(REPRESENTATIONS)},
+        "transform": _TRANSFORM,
+        "classes": _STRING,
+        "split": {"anyOf": [{"type": "null"}, {"type": "array", "minItems": 3, "maxItems": 3, "items": _ERROR}]},
+        "dead_zone": {"type": "number", "minimum": 0, "maximum": 1},
+        "basis_precision": _POSITIVE,
+        "axis_weight_cm": _POSITIVE,
+        "fps": _POSITIVE,
+        "lossless": {"type": "boolean"},
+    },
+    {
+        "segment": {"type": "boolean"},
+        "coefficient_coder": {"enum": ["primed", "context", "zstd", "auto"]},
+        "axes_from_positions": {"type": "boolean"},
+    },
+)
+
+_AUTO_GROUP = _record(
+    {"width": _COUNT, "clips": _COUNT, "k": _COUNT, "method": _STRING, "estimated_bytes": _COUNT,
+     "candidates": {"type": "array", "items": _record({"k": _COUNT, "method": _STRING, "bytes": _COUNT},
+                                                       {"seed": {"type": ["integer", "null"]}})}},
+)
+
+SCHEMA = _record(
+    {
+        "tool": _STRING,
+        "settings": _SETTINGS,
+        "skeletons": {"type": "array", "items": _record({"name": _STRING})},
+        "classes": {"type": "array", "items": _record({"name": _STRING, "components": _COUNT, "clips": _COUNT,
+                                                       "frames": _COUNT})},
+        "clips": {"type": "array", "items": _CLIP},
+    },
+    {
+        "auto_classes": {"type": "array", "items": _AUTO_GROUP},
+        "skipped": {"type": "array", "items": _record({"path": _STRING, "error": _STRING})},
+    },
+)
+
+
+@functools.cache
+def _schema_check():
+    return fastjsonschema.compile(SCHEMA)
+
+
+def _refuse_constant(name: str):
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def parse_json(data: bytes):
+    """JSON as the spec defines it: no NaN or Infinity, which Python's json would accept."""
+    return json.loads(data, parse_constant=_refuse_constant)
+
+
+def validate(meta, stream_names: list[str], archive_path: str) -> dict[str, tuple[str, int]]:
+    """Check `meta` against the schema and every rule between its fields (ArchiveError if one
+    fails); return every file a full decompress writes (`_output_files`)."""
+
+    def fail(field: str, problem: str) -> ArchiveError:
+        return ArchiveError(f"meta: {field}: {problem}", archive_path)
+
+    try:
+        _schema_check()(meta)
+    except fastjsonschema.JsonSchemaValueException as exc:
+        field = exc.name.removeprefix("data").lstrip(".") or "(top level)"
+        raise fail(field, exc.message.removeprefix(exc.name).strip()) from None
+    settings = meta["settings"]
+    transform = settings["transform"]
+    if transform["id"] == "dwt" and transform["wavelet"] not in pywt.wavelist(kind="discrete"):
+        raise fail("settings.transform.wavelet", f"unknown wavelet {transform['wavelet'][:40]!r}")
+    if not settings["lossless"] and settings.get("coefficient_coder") == "auto":
+        raise fail("settings.coefficient_coder", "'auto' is for compress; a lossy archive names its coder")
+    n_skeletons, n_classes = len(meta["skeletons"]), len(meta["classes"])
+    for k, skeleton in enumerate(meta["skeletons"]):
+        _check_file_name(skeleton["name"], f"skeletons[{k}].name", fail)
+    needed = {"meta", "skeletons"}
+    if not settings["lossless"]:
+        needed.update(f"class/{k:04d}" for k in range(n_classes))
+        if settings.get("coefficient_coder") == "primed":
+            needed.add("priors")
+    for i, row in enumerate(meta["clips"]):
+        needed.update(_check_clip(row, i, settings, n_skeletons, n_classes, fail))
+    missing = sorted(needed - set(stream_names))
+    if missing:
+        raise ArchiveError(f"{missing[0]}: stream missing", archive_path)
+    return _output_files(meta, fail)
+
+
+def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: int, fail) -> list[str]:
+    """Rules of one clip row beyond its schema; return the streams it needs."""
+    where = f"clips[{i}]"
+    _check_relative_path(row["path"], f"{where}.path", fail)
+    if len(row["bones"]) != len(row["counts"]):
+        raise fail(f"{where}.counts", f"{len(row['counts'])} counts for {len(row['bones'])} bones")
+    width = sum(row["counts"])
+    if width > MAX_VALUES_PER_FRAME or width * row["frames"] > MAX_VALUES_PER_CLIP:
+        raise fail(where, f"{row['frames']} frames of {width} values exceed the limits "
+                          f"({MAX_VALUES_PER_FRAME} values per frame, {MAX_VALUES_PER_CLIP} per clip)")
+    if row["first_frame"] + row["frames"] - 1 > MAX_FRAME_NUMBER:
+        raise fail(f"{where}.first_frame", f"frame numbers would pass {MAX_FRAME_NUMBER}")
+    if any(b.isdigit() for b in row["bones"]):
+        raise fail(f"{where}.bones", "a bone name of digits only would read back as a frame number")
+    if row["skeleton"] >= n_skeletons:
+        raise fail(f"{where}.skeleton", f"index {row['skeleton']} but the archive has {n_skeletons} skeletons")
+    for n, line in enumerate(row["header"]):
+        stripped = line.strip(" \t\f\v")
+        if "\r" in line or "\n" in line or "\0" in line or (stripped and stripped[0] not in "#:"):
+            raise fail(f"{where}.header[{n}]", "a header line is blank, a '#' comment or a ':' keyword, on one line")
+    encoding = row["style"]["encoding"]
+    for field in ("header", "bones"):
+        try:
+            "".join(row[field]).encode(encoding)
+        except UnicodeEncodeError:
+            raise fail(f"{where}.{field}", f"not encodable as {encoding}") from None
+    for bone, edges in row.get("twist_flips", {}).items():
+        if len(edges) % 2 or any(b <= a for a, b in zip(edges, edges[1:])) or (edges and edges[-1] > row["frames"]):
+            raise fail(f"{where}.twist_flips", f"ranges of {bone[:40]!r} are not increasing pairs within the clip")
+    if settings["lossless"]:
+        if "segments" in row or "twist_flips" in row:
+            raise fail(where, "a lossless clip has no segments or twist flips")
+        return [f"clip/{i:05d}"]
+    if "segments" not in row:
+        if row["class"] >= n_classes:
+            raise fail(f"{where}.class", f"index {row['class']} but the archive has {n_classes} classes")
+        return [f"clip/{i:05d}"]
+    if not settings.get("segment") or "segment_overlap" not in row:
+        raise fail(f"{where}.segments", "segments need the setting 'segment' and the row's 'segment_overlap'")
+    first, streams = 0, []
+    for s, part in enumerate(row["segments"]):
+        stream = f"clip/{i:05d}/{s:03d}"
+        if part["first"] != first or part["stream"] != stream or part["class"] >= n_classes:
+            raise fail(f"{where}.segments[{s}]", f"expected first frame {first}, stream {stream!r} and a class "
+                                                 f"below {n_classes}")
+        first += part["frames"]
+        streams.append(stream)
+    if first != row["frames"]:
+        raise fail(f"{where}.segments", f"segments cover {first} frames, the clip has {row['frames']}")
+    return streams
+
+
+def _check_relative_path(path: str, field: str, fail) -> None:
+    """A stored path names a file below the output folder: relative, and no part empty, '.' or '..'."""
+    if not path or len(path.encode("utf-8", "surrogatepass")) > MAX_PATH_BYTES:
+        raise fail(field, f"a path is 1 to {MAX_PATH_BYTES} bytes long")
+    for part in path.split("/"):
+        _check_file_name(part, field, fail, whole=path)
+
+
+def _check_file_name(name: str, field: str, fail, whole: str | None = None) -> None:
+    shown = repr((whole or name)[:80])
+    if name in ("", ".", ".."):
+        raise fail(field, f"{shown} leaves the output folder or names no file" if whole or name else "empty name")
+    if "/" in name or "\0" in name or len(name.encode("utf-8", "surrogatepass")) > MAX_NAME_BYTES:
+        raise fail(field, f"{shown} is not one file name of at most {MAX_NAME_BYTES} bytes without '/' or NUL")
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        raise fail(field, f"{shown} is not valid UTF-8 text") from None
+
+
+def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
+    """Every file a full decompress writes: relative path -> ("amc", clip) or ("asf", skeleton).
+
+    Two things may not share a path, and no file may be the folder of another, so no file
+    written replaces or hides another one of the same archive.
+    """
+    files: dict[str, tuple[str, int]] = {}
+
+    def claim(path: str, what: tuple[str, int], field: str) -> None:
+        if files.setdefault(path, what) != what:
+            raise fail(field, f"{path[:80]!r} is written twice (also by {files[path][0]} {files[path][1]})")
+
+    for i, row in enumerate(meta["clips"]):
+        claim(row["path"], ("amc", i), f"clips[{i}].path")
+    for i, row in enumerate(meta["clips"]):
+        folder = row["path"].rpartition("/")[0]
+        claim(f"{folder}/{meta['skeletons'][row['skeleton']]['name']}".lstrip("/"), ("asf", row["skeleton"]),
+              f"clips[{i}].skeleton")
+    folders = set()
+    for path in files:
+        while "/" in path:
+            path = path.rpartition("/")[0]
+            folders.add(path)
+    clash = sorted(folders & files.keys())
+    if clash:
+        raise fail("clips", f"{clash[0][:80]!r} is both a file and a folder")
+    return files

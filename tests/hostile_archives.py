@@ -1,0 +1,305 @@
+"""Hostile archives: each case a way a stranger's .mcz could attack `mcz test`, `info` and `decompress`.
+
+Every archive is written by the project's own writer (`formats.mcz.write_archive`) from a
+golden archive with one thing changed, so every checksum is valid and `mcz` has only its
+own checks to stand on. tests/test_hostile_archives.py runs each case in a child process under
+memory and time limits; `python tests/hostile_archives.py` does the same and prints each
+case's outcome, time and peak memory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import struct
+import subprocess
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import zstandard
+
+import limited
+from mocapzip.codec import entropy
+from mocapzip.codec.coefficients import encode_matrices
+from mocapzip.formats.mcz import ArchiveReader, write_archive
+
+GOLDEN = Path(__file__).parent / "golden"
+BASES = {"lossy": GOLDEN / "lossy_v4.mcz", "lossless": GOLDEN / "lossless_v4.mcz"}  # two clips: 09_01, 64_01
+MEMORY_LIMIT = 1 << 30  # address space of each child: far below what any bomb here would take
+COMMANDS = (("test", "-q"), ("info", "--json"), ("decompress", "-q", "-o"))
+
+
+@dataclass
+class Case:
+    name: str
+    base: str  # "lossy" or "lossless"
+    edit: Callable[[dict, dict], None]  # changes (meta, streams) in place; meta is written back as JSON
+    section: str  # the part of the archive the one-line error must name
+    prepare: Callable[[Path], None] | None = None  # sets up the output folder before decompress
+    decoded: bool = False  # found only by decoding a clip: `info`, which decodes none, may list the archive
+    output: bool = False  # a fault of the output folder, not the archive: only decompress can see it
+
+
+def _set(path: str, value) -> Callable[[dict, dict], None]:
+    """An edit that sets one field of meta, e.g. "clips.0.path"."""
+    keys = [int(k) if k.isdigit() else k for k in path.split(".")]
+
+    def edit(meta: dict, streams: dict) -> None:
+        target = meta
+        for key in keys[:-1]:
+            target = target[key]
+        target[keys[-1]] = value
+
+    return edit
+
+
+def _delete(path: str) -> Callable[[dict, dict], None]:
+    keys = [int(k) if k.isdigit() else k for k in path.split(".")]
+
+    def edit(meta: dict, streams: dict) -> None:
+        target = meta
+        for key in keys[:-1]:
+            target = target[key]
+        del target[keys[-1]]
+
+    return edit
+
+
+def _stream(name: str, data: bytes | Callable[[], bytes] | None) -> Callable[[dict, dict], None]:
+    """An edit that replaces a stream's bytes, or makes them when the case is built (None: removes the stream)."""
+
+    def edit(meta: dict, streams: dict) -> None:
+        if data is None:
+            del streams[name]
+        else:
+            streams[name] = data() if callable(data) else data
+
+    return edit
+
+
+def _both(*edits) -> Callable[[dict, dict], None]:
+    def edit(meta: dict, streams: dict) -> None:
+        for one in edits:
+            one(meta, streams)
+
+    return edit
+
+
+def _lossless_frames(frames: int) -> Callable[[dict, dict], None]:
+    """The first clip's lossless stream, re-packed to claim `frames` frames (151 bytes or so)."""
+
+    def edit(meta: dict, streams: dict) -> None:
+        sections = entropy.unpack_blobs(streams["clip/00000"])
+        header = entropy.decode_ints(sections[0])
+        header[1] = frames
+        streams["clip/00000"] = entropy.pack_blobs([entropy.encode_ints(header), *sections[1:]])
+        meta["clips"][0]["frames"] = min(frames, meta["clips"][0]["frames"])
+
+    return edit
+
+
+def _zstd_bomb(size: int) -> bytes:
+    """One zstd frame of `size` spaces, without the content size in its header; built in pieces."""
+    compressor = zstandard.ZstdCompressor(level=3, write_content_size=False)
+    chunk = b" " * (1 << 24)
+    parts = compressor.compressobj()
+    out = [parts.compress(chunk) for _ in range(size // len(chunk))]
+    return b"".join([*out, parts.flush()])
+
+
+def _wide_basis() -> bytes:
+    """A class basis (as `ClassBasis.encode` lays it out) of one zero direction over poses of 2^20
+    values: within the basis limits, but decoding a clip with it would take 2^20 x frames values."""
+    zeros = np.zeros((1 << 20, 1), np.int64)  # mean, reference offsets, basis integers
+    return struct.pack("<II", len(zeros), 1) + np.ones(1, "<f4").tobytes() + encode_matrices([zeros] * 3)
+
+
+def _json_stream(value) -> bytes:
+    return entropy.encode_bytes(json.dumps(value).encode())
+
+
+def _symlink_outside(out: Path) -> None:
+    out.mkdir(parents=True)
+    (out.parent / "outside").mkdir()
+    (out / "09").symlink_to(out.parent / "outside", target_is_directory=True)
+
+
+def cases(watched: Path) -> list[Case]:
+    """Every hostile case; `watched` is the temporary tree the checks watch (absolute paths point into it)."""
+    escaped = (watched / "escaped").as_posix()
+    c = []
+    # 1. Paths that leave the output folder, or name no file.
+    for label, path in (("dotdot", "../../x.amc"), ("dotdot_inside", "a/../../../x.amc"),
+                        ("absolute", f"{escaped}/x.amc"), ("empty", ""), ("dot", "."), ("dot_folder", "./x.amc"),
+                        ("empty_part", "a//x.amc"), ("nul", "x\0.amc"), ("long_name", "x" * 300 + ".amc")):
+        c.append(Case(f"clip_path_{label}", "lossy", _set("clips.0.path", path), "meta: clips[0].path"))
+    for label, name in (("absolute", f"{escaped}/x.asf"), ("dotdot", ".."), ("with_folder", "../x.asf"),
+                        ("empty", "")):
+        c.append(Case(f"skeleton_name_{label}", "lossless", _set("skeletons.0.name", name), "meta: skeletons[0].name"))
+    c.append(Case("symlink_in_output_folder", "lossy", _set("clips.0.path", "09/x.amc"), "symbolic link",
+                  prepare=_symlink_outside, output=True))
+    # 2. Hangs: a lossless stream that claims far more frames than it holds.
+    c.append(Case("lossless_claims_1e12_frames", "lossless", _lossless_frames(10**12), "clip/00000", decoded=True))
+    c.append(Case("lossless_claims_3e8_frames", "lossless", _lossless_frames(3 * 10**8), "clip/00000", decoded=True))
+    # 3. Memory bombs.
+    c.append(Case("lossy_1e7_frames", "lossy", _set("clips.0.frames", 10**7), "meta: clips[0].frames"))
+    c.append(Case("lossy_frames_beyond_values_limit", "lossy", _set("clips.0.frames", 500_000), "meta: clips[0]"))
+    c.append(Case("lossy_stream_shorter_than_its_frames", "lossy", _set("clips.0.frames", 100_000), "clip/00000",
+                  decoded=True))
+    c.append(Case("meta_unpacks_to_2GB", "lossy", _stream("meta", lambda: _zstd_bomb(2 << 30)), "meta"))
+    c.append(Case("skeletons_unpack_to_300MB", "lossless", _stream("skeletons", lambda: _zstd_bomb(300 << 20)), "skeletons"))
+    c.append(Case("meta_fake_content_size", "lossy", _stream("meta", _fake_content_size(1 << 40)), "meta"))
+    # 4. Meta of the wrong shape.
+    for label, edit, section in (
+        ("no_tool", _delete("tool"), "meta: (top level)"),
+        ("encoding_rot13", _set("clips.0.style.encoding", "rot13"), "meta: clips[0].style.encoding"),
+        ("skeleton_99", _set("clips.0.skeleton", 99), "meta: clips[0].skeleton"),
+        ("first_frame_string", _set("clips.0.first_frame", "1"), "meta: clips[0].first_frame"),
+        ("clips_dict", _set("clips", {"0": {}}), "meta: clips"),
+        ("no_settings", _delete("settings"), "meta: (top level)"),
+        ("transform_none", _set("settings.transform", {"id": "none"}), "meta: settings.transform"),
+        ("wavelet_unknown", _set("settings.transform", {"id": "dwt", "wavelet": "evil", "level": None}),
+         "meta: settings.transform.wavelet"),
+        ("representation_unknown", _set("settings.representation", "quaternions"), "meta: settings.representation"),
+        ("error_negative", _set("settings.error_cm", -1), "meta: settings.error_cm"),
+        ("class_99", _set("clips.0.class", 99), "meta: clips[0].class"),
+        ("counts_short", _set("clips.0.counts", [6]), "meta: clips[0].counts"),
+        ("counts_huge", _set("clips.0.counts", [7] * 29 + [10**6]), "meta: clips[0].counts"),
+        ("bone_with_space", _set("clips.0.bones.1", "lower back"), "meta: clips[0].bones"),
+        ("bone_digits", _set("clips.0.bones.1", "17"), "meta: clips[0].bones"),
+        ("header_not_a_comment", _set("clips.0.header", ["hello"]), "meta: clips[0].header[0]"),
+        ("digits_99", _set("clips.0.style.digits", 99), "meta: clips[0].style.digits"),
+        ("newline_tab", _set("clips.0.style.newline", "\t"), "meta: clips[0].style.newline"),
+        ("unknown_row_field", _set("clips.0.evil", 1), "meta: clips[0]"),
+        ("twist_flips_beyond_clip", _set("clips.0.twist_flips", {"rthumb": [0, 10**6]}), "meta: clips[0].twist_flips"),
+        ("auto_coder_in_lossy", _set("settings.coefficient_coder", "auto"), "meta: settings.coefficient_coder"),
+        ("segments_without_setting", _set("clips.0.segments", [{"first": 0, "frames": 1, "class": 0, "error_cm": 0,
+                                                                "max_error_cm": 0, "stream": "clip/00000/000"}] * 2),
+         "meta: clips[0].segments"),
+    ):
+        c.append(Case(f"meta_{label}", "lossy", edit, section))
+    c.append(Case("meta_nan", "lossy", _stream("meta", entropy.encode_bytes(b'{"error_cm": NaN}')), "meta"))
+    c.append(Case("meta_not_json", "lossy", _stream("meta", entropy.encode_bytes(b"\xff{")), "meta"))
+    c.append(Case("meta_is_a_list", "lossy", _stream("meta", _json_stream([])), "meta: (top level)"))
+    c.append(Case("meta_not_zstd", "lossy", _stream("meta", b"{}"), "meta"))
+    c.append(Case("bone_not_in_skeleton", "lossy", _set("clips.0.bones.1", "tail"), "clip/00000", decoded=True))
+    c.append(Case("clip_stream_3_bytes", "lossless", _stream("clip/00000", b"abc"), "clip/00000", decoded=True))
+    c.append(Case("class_stream_3_bytes", "lossy", _stream("class/0000", b"abc"), "class/0000", decoded=True))
+    c.append(Case("priors_3_bytes", "lossy", _stream("priors", b"abc"), "priors", decoded=True))
+    c.append(Case("class_basis_of_a_million_pose_values", "lossy", _stream("class/0000", _wide_basis), "clip/00000",
+                  decoded=True))
+    # 5. Meta that is well formed but inconsistent.
+    c.append(Case("two_clips_one_path", "lossy", _set("clips.1.path", "09_01.amc"), "meta: clips[1].path"))
+    c.append(Case("clip_path_is_a_skeleton", "lossy", _set("clips.1.path", "09.asf"), "meta: clips"))
+    c.append(Case("file_and_folder", "lossy", _set("clips.1.path", "09_01.amc/x.amc"), "meta: clips"))
+    c.append(Case("two_skeletons_one_name", "lossless", _set("skeletons.1.name", "09.asf"), "meta: clips[1].skeleton"))
+    c.append(Case("header_with_newline", "lossy", _set("clips.0.header.0", "# a\n1\nroot 0 0 0 0 0 0"),
+                  "meta: clips[0].header[0]"))
+    c.append(Case("header_with_cr", "lossless", _set("clips.0.header.0", "# a\rb"), "meta: clips[0].header[0]"))
+    c.append(Case("skeletons_stream_missing", "lossless", _stream("skeletons", None), "skeletons: stream missing"))
+    c.append(Case("clip_stream_missing", "lossless", _stream("clip/00001", None), "clip/00001: stream missing"))
+    c.append(Case("priors_missing", "lossy", _stream("priors", None), "priors: stream missing"))
+    c.append(Case("skeletons_one_short", "lossless", _stream("skeletons", _json_stream(["x"])), "skeletons"))
+    c.append(Case("skeleton_not_latin1", "lossless", _stream("skeletons", _json_stream(["\u20ac", "\u20ac"])),
+                  "skeletons"))
+    c.append(Case("skeleton_not_asf", "lossless", _stream("skeletons", _json_stream(["hello", "hello"])),
+                  "skeletons: skeleton 0", decoded=True))
+    return c
+
+
+def _fake_content_size(size: int) -> bytes:
+    """A tiny zstd frame whose header claims `size` bytes of content (it holds a few)."""
+    frame = bytearray(zstandard.ZstdCompressor(write_content_size=False, write_checksum=False).compress(b"{}"))
+    # Frame header descriptor: set Frame_Content_Size_flag = 3 (8 bytes), Single_Segment = 0 -> window byte stays.
+    descriptor = frame[4]
+    frame[4] = (descriptor & 0x3F) | 0xC0
+    window_present = not descriptor & 0x20
+    insert_at = 5 + (1 if window_present else 0)
+    return bytes(frame[:insert_at] + size.to_bytes(8, "little") + frame[insert_at:])
+
+
+def build(case: Case, archive: Path) -> None:
+    """Write the hostile archive of `case` to `archive` through the project's writer."""
+    with ArchiveReader(BASES[case.base]) as reader:
+        streams = {name: reader.read(name) for name in reader.names()}
+    meta = json.loads(entropy.decode_bytes(streams["meta"]))
+    original_meta = streams["meta"]
+    case.edit(meta, streams)
+    if "meta" in streams and streams["meta"] == original_meta:  # the edit changed meta's fields
+        streams["meta"] = _json_stream(meta)
+    write_archive(archive, streams, tool_version="hostile", overwrite=True)
+
+
+def run_mcz(*args: str) -> subprocess.CompletedProcess:
+    """`mcz ARGS` in a child limited to MEMORY_LIMIT of address space (`limited.run_mcz`)."""
+    return limited.run_mcz(*args, memory=MEMORY_LIMIT)
+
+
+def files_under(root: Path) -> set[str]:
+    return {os.path.relpath(os.path.join(folder, name), root)
+            for folder, dirs, names in os.walk(root) for name in names + [d for d in dirs
+                                                                         if os.path.islink(os.path.join(folder, d))]}
+
+
+def check(case: Case, watched: Path) -> list[str]:
+    """Run the three commands on the case's archive, in a folder of its own under `watched`;
+    return what went wrong (empty: refused cleanly, nothing written anywhere under `watched`)."""
+    scratch = watched / case.name
+    scratch.mkdir()
+    archive = scratch / "hostile.mcz"
+    build(case, archive)
+    out = scratch / "deep" / "er" / "out"
+    if case.prepare is not None:
+        case.prepare(out)
+    before = files_under(watched)
+    problems = []
+    for command in COMMANDS:
+        args = [*command, os.fspath(out)] if command[0] == "decompress" else [*command]
+        result = run_mcz(args[0], os.fspath(archive), *args[1:])
+        lines = result.stderr.splitlines()
+        if result.returncode == 0 and not result.stderr and (
+                case.output and command[0] != "decompress" or case.decoded and command[0] == "info"):
+            continue  # info lists what meta says and decodes no clip; only decompress sees the output folder
+        named = f"mcz: error: {out if case.output else archive}"
+        if result.returncode != 1 or result.stdout or len(lines) != 1:
+            problems.append(f"{command[0]}: exit {result.returncode}, stdout {result.stdout[:200]!r}, "
+                            f"stderr {result.stderr[-600:]!r}")
+        elif not lines[0].startswith(named) or case.section not in lines[0]:
+            problems.append(f"{command[0]}: {lines[0]!r} does not name {case.section!r}")
+    written = files_under(watched) - before
+    if written:
+        problems.append(f"files written: {sorted(written)}")
+    return problems
+
+
+def main() -> None:
+    """Run every case as the test does; print outcome, seconds and the peak memory of the worst child."""
+    import tempfile
+
+    peak_case, peak = None, 0
+    slowest = (None, 0.0)
+    refused = 0
+    with tempfile.TemporaryDirectory() as top:
+        all_cases = cases(Path(top))
+        for case in all_cases:
+            started = time.perf_counter()
+            problems = check(case, Path(top))
+            seconds = time.perf_counter() - started
+            rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+            if rss > peak:
+                peak_case, peak = case.name, rss
+            if seconds > slowest[1]:
+                slowest = (case.name, seconds)
+            refused += not problems
+            print(f"{case.name:40s} {'refused' if not problems else 'FAILED: ' + '; '.join(problems)}  {seconds:.1f} s")
+    print(f"{refused} of {len(all_cases)} cases refused cleanly by test, info and decompress; "
+          f"slowest {slowest[0]} ({slowest[1]:.1f} s for the three commands); "
+          f"largest child {peak / 1024:.0f} MiB ({peak_case})")
+
+
+if __name__ == "__main__":
+    main()
