@@ -1,3 +1,21 @@
 """mocapzip: compress motion-capture databases (Acclaim ASF/AMC) into one small .mcz archive."""
 
+import os as _os
+
 __version__ = "0.1.0"
+
+# Run from a source checkout. formats/ and cli/ live beside this directory, not inside it;
+# setuptools maps them to mocapzip.formats / mocapzip.cli only when installing (package-dir in
+# pyproject.toml; an editable install maps them to these same files). But `python -m pytest` or
+# `python -c ...` started in the repository root puts the root first on sys.path, so this in-tree
+# package is imported even when a wheel is installed, and it would have no formats/cli. So when
+# this directory has no formats/ and it sits in a checkout (pyproject.toml and formats/ beside
+# it), also look for subpackages in the checkout root: mocapzip.formats is then formats/ of the
+# SAME checkout, never another copy. Inert in an installed wheel (formats/ is inside the package).
+_here = _os.path.dirname(_os.path.abspath(__file__))
+_root = _os.path.dirname(_here)
+if (not _os.path.isdir(_os.path.join(_here, "formats"))
+        and _os.path.isfile(_os.path.join(_root, "pyproject.toml"))
+        and _os.path.isfile(_os.path.join(_root, "formats", "__init__.py"))):
+    __path__.append(_root)  # after this directory: mocapzip/*.py always win
+del _os, _here, _root

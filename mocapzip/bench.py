@@ -273,10 +273,22 @@ def _error_stats(d: np.ndarray) -> dict:
 # ----------------------------------------------------------------------------- child processes
 
 
+def _python_c(code: str) -> list[str]:
+    """argv running `code` in a fresh interpreter that imports mocapzip from where this process did.
+
+    Plain `python -c` puts the current directory first on sys.path: started in a repository
+    checkout, the child would import the in-tree package while this process (the `mcz` script of
+    an installed wheel) runs the installed one, or the reverse. Like multiprocessing's spawn, the
+    child gets this process's sys.path ('' made absolute), so it always runs the same copy.
+    """
+    path = [entry or os.getcwd() for entry in sys.path]
+    return [sys.executable, "-c", f"import sys; sys.path[:] = {path!r}\n{code}"]
+
+
 def _run_child(job: dict, quiet: bool) -> dict:
     """Run one job in a fresh Python process; return its JSON answer plus its peak RSS (MB)."""
     job = {**job, "quiet": quiet}
-    proc = subprocess.Popen([sys.executable, "-c", "from mocapzip.bench import _child_main; _child_main()"],
+    proc = subprocess.Popen(_python_c("from mocapzip.bench import _child_main; _child_main()"),
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE)
     try:
         proc.stdin.write(json.dumps(job).encode())
@@ -378,7 +390,7 @@ def run_measured(argv: list[str], env: dict | None = None, echo=None) -> dict:
 
 def mcz_command() -> list[str]:
     """How to start `mcz bench` in a child process (with this interpreter, whatever PATH says)."""
-    return [sys.executable, "-c", "from mocapzip.cli.main import main; main()", "bench"]
+    return [*_python_c("from mocapzip.cli.main import main; main()"), "bench"]
 
 
 # ----------------------------------------------------------------------------- mcz

@@ -16,6 +16,17 @@ REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
 
 
+def pytest_report_header(config) -> str:
+    """Say which copy of mocapzip is under test (`pytest -q` hides it; see it with `pytest`).
+
+    Editable install, or run from the repository root: the tree (mocapzip/__init__.py finds
+    formats/ and cli/ beside it). A wheel, run from outside the repository: the installed copy.
+    """
+    import mocapzip.formats  # binds mocapzip too
+
+    return f"mocapzip under test: {Path(mocapzip.__file__).parent} (formats: {Path(mocapzip.formats.__file__).parent})"
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """../shared/data: every developer machine and CI have it; a missing copy is an error."""
