@@ -7,6 +7,19 @@ default, set before numpy is first imported; an explicit environment setting win
 """
 
 import os
+import sys
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+
+
+def _interrupted(kind, value, traceback, previous=sys.excepthook):
+    """Ctrl-C that no command caught (while the imports run, before `reports_errors` takes over):
+    one line, not a traceback. Python then ends the process by SIGINT, exit status 130."""
+    if issubclass(kind, KeyboardInterrupt):
+        sys.stderr.write("mcz: error: interrupted (SIGINT)\n")
+    else:
+        previous(kind, value, traceback)
+
+
+sys.excepthook = _interrupted  # installed here, before main.py imports click and the rest

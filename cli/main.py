@@ -11,6 +11,7 @@ import json
 import os
 
 import click
+from click.core import ParameterSource
 
 from .. import __version__
 from .bench import bench
@@ -57,22 +58,58 @@ def inspect(paths, asf, fps, as_json):
     for r in rows:
         click.echo(f"{r['path']:<{width}}  {r['frames']:>7}  {r['dof']:>4}  {r['seconds']:>8.2f}  {r['skeleton'] or '-'}")
     t = report["total"]
-    click.echo(f"{'total: ' + str(t['clips']) + ' clips':<{width}}  {t['frames']:>7}  {'':>4}  {t['seconds']:>8.2f}  "
-               f"{t['skeletons']} skeletons, {t['bytes'] / 1e6:.1f} MB of AMC")
+    click.echo(f"{'total: ' + _count(t['clips'], 'clip'):<{width}}  {t['frames']:>7}  {'':>4}  {t['seconds']:>8.2f}  "
+               f"{_count(t['skeletons'], 'skeleton')}, {t['bytes'] / 1e6:.1f} MB of AMC")
+
+
+def _count(n: int, noun: str) -> str:
+    """'1 clip', '2 clips': summaries read as sentences."""
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
+def _errors(report: dict) -> str:
+    """The achieved errors: every clip's MEAN is within -e, so the largest mean is the bound that held."""
+    return f"largest clip mean error {report['largest_mean_error_cm']:.3f} cm (max {report['largest_max_error_cm']:.3f} cm)"
 
 
 def _summary_line(s: dict) -> str:
-    return (f"{s['clips']} clips, {s['frames']} frames: {s['input_bytes']:,} -> {s['output_bytes']:,} bytes "
-            f"({s['input_bytes'] / s['output_bytes']:.1f}x, {s['bytes_per_frame']:.2f} bytes/frame), "
-            f"worst clip error {s['worst_error_cm']:.3f} cm, {s['frames'] / s['seconds']:,.0f} frames/s")
+    return (f"{_count(s['clips'], 'clip')}, {_count(s['frames'], 'frame')}: {s['input_bytes']:,} -> "
+            f"{s['output_bytes']:,} bytes ({s['input_bytes'] / s['output_bytes']:.1f}x, "
+            f"{s['bytes_per_frame']:.2f} bytes/frame), {_errors(s)}, {s['frames'] / s['seconds']:,.0f} frames/s")
+
+
+def _not_stdout(ctx, param, value):
+    """Refuse `-o -`: zstd streams to stdout, but an .mcz is an HDF5 file, written by seeking."""
+    if value == "-":
+        what = "file" if param.type.file_okay else "folder"
+        raise click.BadParameter(f"writing to stdout is not supported (an .mcz archive is an HDF5 file); "
+                                 f"name a {what}", ctx, param)
+    return value
+
+
+# Options that only tune the lossy codec: given with --lossless they would be silently ignored.
+LOSSY_ONLY = ("error_cm", "representation", "transform", "wavelet", "level", "split", "segment")
+
+
+def _refuse_lossy_options(ctx: click.Context) -> None:
+    """Usage error for any lossy-only option given on the command line together with --lossless."""
+    given = [p.opts[-1] for p in ctx.command.params
+             if p.name in LOSSY_ONLY and ctx.get_parameter_source(p.name) is ParameterSource.COMMANDLINE]
+    if given:
+        verb = "has" if len(given) == 1 else "have"
+        raise click.UsageError(f"{', '.join(given)} {verb} no meaning with --lossless "
+                               "(it stores every AMC value exactly); drop one or the other", ctx)
 
 
 @main.command()
 @click.argument("inputs", nargs=-1, required=True, type=click.Path())
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The .mcz archive to write.")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), callback=_not_stdout,
+              help="The .mcz archive to write (a file: not stdout, `-o -` is refused).")
 @click.option("-e", "--error", "error_cm", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True,
               help="Bound on each clip's mean joint-position error in cm, measured end to end.")
-@click.option("--lossless", is_flag=True, help="Every AMC value comes back as written (ignores --error).")
+@click.option("--lossless", is_flag=True,
+              help="Every AMC value comes back as written; refuses the lossy-only options "
+                   "-e, -r, -t, --wavelet, --level, --split and --segment.")
 @click.option("-r", "--representation", type=click.Choice(["channels", "positions", "aligned", "scaled", "normalised"]),
               default="aligned", show_default=True, help="What the codec compresses (thesis section 3.2.1).")
 @click.option("-t", "--transform", type=click.Choice(["dct", "dwt", "none"]), default="dct", show_default=True,
@@ -117,6 +154,8 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
       mcz compress ../shared/data/cmu -o cmu.mcz --lossless      exact AMC values back
       mcz compress ../shared/data/cmu -o cmu.mcz -c auto --segment  classes (and cuts) found from the poses
     """
+    if lossless:
+        _refuse_lossy_options(click.get_current_context())
     from .. import archive, progress
 
     progress.QUIET = quiet
@@ -148,7 +187,8 @@ def _parse_split(text):
 
 @main.command()
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), help="Folder for the ASF and AMC files.")
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_not_stdout,
+              help="Folder for the ASF and AMC files (not stdout: `-o -` is refused).")
 @click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
 @click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
@@ -166,15 +206,22 @@ def decompress(archive_path, output, patterns, force, quiet):
     progress.QUIET = quiet
     summary = archive.decompress(archive_path, output, patterns, force=force)
     if not quiet:
-        click.echo(f"{summary['clips']} clips, {summary['frames']} frames -> {summary['files']} files in {summary['output']}", err=True)
+        click.echo(f"{_count(summary['clips'], 'clip')}, {_count(summary['frames'], 'frame')} -> "
+                   f"{_count(summary['files'], 'file')} in {summary['output']}", err=True)
 
 
 @main.command()
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
-@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@click.option("--clips/--no-clips", "show_clips", default=True, show_default=True,
+              help="List every clip (path, frames, class, mean and max error); --no-clips for totals only.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON (always with every clip).")
 @reports_errors
-def info(archive_path, as_json):
-    """Show what ARCHIVE holds: settings, classes, clips, frames, sizes and achieved errors."""
+def info(archive_path, show_clips, as_json):
+    """Show what ARCHIVE holds: settings, classes, clips, frames, sizes and achieved errors.
+
+    Errors are joint-position errors in cm, measured end to end: a clip's mean (what -e
+    bounds) and its max (the largest distance of any joint in any frame).
+    """
     from .. import archive
 
     report = archive.info(archive_path)
@@ -185,8 +232,8 @@ def info(archive_path, as_json):
     mode = "lossless" if s["lossless"] else f"error <= {s['error_cm']} cm, {s['representation']}, {s['transform']['id']}"
     click.echo(f"{report['path']}: format {report['format_version']}, written by {report['tool']}")
     click.echo(f"settings: {mode}, classes {s['classes']}{', segmented' if s.get('segment') else ''}, {s['fps']} fps")
-    click.echo(f"{len(report['clips'])} clips, {report['frames']} frames, {report['bytes']:,} bytes "
-               f"({report['bytes_per_frame']:.2f} bytes/frame), worst clip error {report['worst_error_cm']:.3f} cm")
+    click.echo(f"{_count(len(report['clips']), 'clip')}, {_count(report['frames'], 'frame')}, {report['bytes']:,} bytes "
+               f"({report['bytes_per_frame']:.2f} bytes/frame), {_errors(report)}")
     click.echo("streams: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(report["stream_bytes"].items())))
     if report["skipped"]:
         click.echo(f"not in the archive, skipped by compress --skip-bad: {len(report['skipped'])}")
@@ -198,7 +245,8 @@ def info(archive_path, as_json):
         for clip in dropped:
             click.echo(f"  {clip['path']}: {clip['dropped_frames']}")
     for c in report["classes"]:
-        click.echo(f"  class {c['name']}: {c['clips']} clips, {c['frames']} frames, {c['components']} components")
+        click.echo(f"  class {c['name']}: {_count(c['clips'], 'clip')}, {_count(c['frames'], 'frame')}, "
+                   f"{_count(c['components'], 'component')}")
     for group in report["auto_classes"]:
         tried = {}
         for candidate in group["candidates"]:
@@ -207,11 +255,22 @@ def info(archive_path, as_json):
         click.echo(f"auto classes: K={group['k']} ({group['method']}) for {group['clips']} {units} of pose width "
                    f"{group['width']}; estimated bytes by K: " + ", ".join(f"{k}: {b:,}" for k, b in sorted(tried.items())))
     names = [c["name"] for c in report["classes"]]
+    if show_clips:
+        _clip_table(report["clips"], names)
     for clip in report["clips"]:
         if "segments" in clip:
-            click.echo(f"  {clip['path']}: {len(clip['segments'])} segments: " + ", ".join(
+            click.echo(f"  {clip['path']}: {_count(len(clip['segments']), 'segment')}: " + ", ".join(
                 f"frames {seg['first']}..{seg['first'] + seg['frames'] - 1} {names[seg['class']]}"
                 for seg in clip["segments"]))
+
+
+def _clip_table(clips: list[dict], names: list[str]) -> None:
+    """One line per clip; the class is '-' where the archive keeps no class names (lossless)."""
+    width = max([len(c["path"]) for c in clips] + [4])
+    click.echo(f"{'clip':<{width}}  {'frames':>7}  {'class':<8}  {'mean cm':>8}  {'max cm':>8}")
+    for c in clips:
+        name = names[c["class"]] if c["class"] < len(names) else "-"
+        click.echo(f"{c['path']:<{width}}  {c['frames']:>7}  {name:<8}  {c['error_cm']:>8.3f}  {c['max_error_cm']:>8.3f}")
 
 
 @main.command("test")
@@ -227,7 +286,7 @@ def test_archive(archive_path, quiet):
         opened.verify()
         count = len(opened.clips)
     if not quiet:
-        click.echo(f"{archive_path}: OK ({count} clips)", err=True)
+        click.echo(f"{archive_path}: OK ({_count(count, 'clip')})", err=True)
 
 
 main.add_command(bench)

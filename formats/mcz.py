@@ -33,6 +33,7 @@ __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveW
 FORMAT_VERSION = 4
 MAGIC = "MCZ mocapzip archive"
 _WRITE_BATCH = 1 << 20  # one h5py write per small stream costs ~50 us; batch them instead
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _ATTRIBUTES = ("magic", "format_version", "tool_version", "index_crc32", "header_crc32")
 _INDEX_KEYS = ("names", "offsets", "lengths", "crc32")
 # The index is a zstd-coded stream like any other: its stored bytes and its JSON obey the same limit.
@@ -308,6 +309,21 @@ def _section(path: str, section: str) -> Iterator[None]:
         raise ArchiveError(f"{section}: damaged or unreadable ({type(exc).__name__}: {exc})", path) from exc
 
 
+def _has_hdf5_signature(file, size: int) -> bool:
+    """Whether HDF5's signature is where HDF5 looks for it (offset 0, 512, 1024, 2048, ...).
+
+    Without it h5py only says "file signature not found": the file is something else
+    (an AMC, a text file, an empty file), which deserves a plain message.
+    """
+    offset = 0
+    while offset + len(_HDF5_SIGNATURE) <= size:
+        file.seek(offset)
+        if file.read(len(_HDF5_SIGNATURE)) == _HDF5_SIGNATURE:
+            return True
+        offset = offset * 2 or 512
+    return False
+
+
 class ArchiveReader:
     """Random access to the streams of an .mcz archive; checks header and index on open.
 
@@ -320,6 +336,8 @@ class ArchiveReader:
         # (symbolic links followed) is refused without blocking: HDF5 would wait on it forever.
         with open_regular_file(self.path) as file:
             file_size = os.fstat(file.fileno()).st_size
+            if not _has_hdf5_signature(file, file_size):
+                raise self._error("header: not an mcz archive (not an HDF5 file)")
         with _section(self.path, "header"):
             self._file = h5py.File(self.path, "r")
         try:

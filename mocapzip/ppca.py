@@ -160,8 +160,6 @@ def thesis_threshold(scores: list[np.ndarray], groups: list[str] | None = None) 
 
 # --- classifying clips (`mcz classify`, benchmarks/classification.py) ---------------------------
 
-ROOT_ALIGNED = ("aligned", "scaled", "normalised")
-
 
 def classification_poses(clip) -> np.ndarray:
     """A LoadedClip's poses as the classifier sees them.

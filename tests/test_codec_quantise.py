@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mocapzip.codec import get_stage
-from mocapzip.codec.quantise import UniformQuantiser, dequantise_from_bits, quantise_to_bits
+from mocapzip.codec.quantise import UniformQuantiser
 
 # Relative slack for float rounding exactly at bin edges.
 EPS = 1e-12
@@ -81,37 +81,3 @@ def test_rejects_values_that_do_not_fit():
         with pytest.raises(ValueError):
             quantiser.quantise(np.array(bad))
 
-
-@pytest.mark.parametrize("bits", [2, 8, 12, 16, 32])
-def test_quantise_to_bits_bounds(bits):
-    rng = np.random.default_rng(3)
-    x = rng.normal(size=(40, 5)) * np.array([1e-3, 1.0, 10.0, 1e3, 1e6])
-    ints, scales = quantise_to_bits(x, bits)
-    assert ints.shape == x.shape and ints.dtype == np.int64
-    assert scales.shape == (5,) and scales.dtype == np.float32
-    largest = 2 ** (bits - 1) - 1
-    assert np.abs(ints).max() <= largest
-    # Each column uses its full range (up to float32 rounding of the scale),
-    # so small columns keep their precision.
-    assert np.all(np.abs(ints).max(axis=0) >= largest * (1 - 2.0**-22) - 1)
-    error = np.abs(x - dequantise_from_bits(ints, scales))
-    assert np.all(error <= scales.astype(np.float64) / 2 * (1 + 1e-9))
-
-
-def test_quantise_to_bits_zero_column():
-    x = np.zeros((4, 2))
-    x[:, 1] = [1.0, -2.0, 0.5, 0.0]
-    ints, scales = quantise_to_bits(x, 8)
-    assert scales[0] == 0 and np.all(ints[:, 0] == 0)
-    restored = dequantise_from_bits(ints, scales)
-    assert np.all(restored[:, 0] == 0)
-    np.testing.assert_allclose(restored[:, 1], x[:, 1], atol=float(scales[1]) / 2)
-
-
-def test_quantise_to_bits_rejects_bad_input():
-    with pytest.raises(ValueError):
-        quantise_to_bits(np.zeros(3), 8)
-    with pytest.raises(ValueError):
-        quantise_to_bits(np.zeros((3, 3)), 1)
-    with pytest.raises(ValueError):
-        quantise_to_bits(np.full((2, 2), np.nan), 8)

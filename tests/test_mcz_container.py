@@ -185,8 +185,12 @@ def test_not_an_archive(tmp_path):
     (tmp_path / "text.mcz").write_text("hello")
     with h5py.File(tmp_path / "plain.h5", "w") as f:
         f.attrs["magic"] = "HDF5 but something else"
-    for name in ("text.mcz", "plain.h5"):
+    (tmp_path / "empty.mcz").write_bytes(b"")
+    for name in ("text.mcz", "plain.h5", "empty.mcz"):
         with pytest.raises(MocapFormatError, match=f"{name}: header: "):
+            ArchiveReader(tmp_path / name)
+    for name in ("text.mcz", "empty.mcz"):  # no HDF5 signature: said plainly, not in HDF5's words
+        with pytest.raises(MocapFormatError, match=r"header: not an mcz archive \(not an HDF5 file\)$"):
             ArchiveReader(tmp_path / name)
     with pytest.raises(FileNotFoundError):
         ArchiveReader(tmp_path / "missing.mcz")

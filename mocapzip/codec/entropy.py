@@ -61,7 +61,6 @@ __all__ = [
     "encode_ints",
     "encode_sparse",
     "decode_ints",
-    "decode_sparse",
     "encode_bytes",
     "decode_bytes",
     "pack_blobs",
@@ -206,11 +205,6 @@ def decode_ints(blob: bytes, max_values: int = MAX_VALUES_PER_CLIP) -> np.ndarra
 
     values = _from_codes(codes, _DTYPES[dtype_index])
     return values.reshape(shape, order=_ORDERS[order_index])
-
-
-def decode_sparse(blob: bytes) -> np.ndarray:
-    """Decode the output of `encode_sparse` (same as `decode_ints`, which reads every layout)."""
-    return decode_ints(blob)
 
 
 # ------------------------------------------------------------- layouts

@@ -4,15 +4,11 @@
 optional dead zone widens the bin around zero: small coefficients, which are
 mostly noise, then become 0 and the entropy coder stores long zero runs for
 almost nothing.
-
-`quantise_to_bits` stores a small float matrix (a PCA basis, for example)
-with a fixed number of bits per entry and one float32 scale per column, so
-columns of very different magnitudes each get the full precision.
 """
 
 import numpy as np
 
-__all__ = ["UniformQuantiser", "quantise_to_bits", "dequantise_from_bits"]
+__all__ = ["UniformQuantiser"]
 
 # |x| / step must stay below this so the integer (and later zigzag codes) fit int64.
 _MAX_LEVEL = 2.0**62
@@ -61,34 +57,3 @@ class UniformQuantiser:
     def __repr__(self) -> str:
         return f"UniformQuantiser(step={self.step!r}, dead_zone={self.dead_zone!r})"
 
-
-def quantise_to_bits(x, bits: int):
-    """Quantise each column of a 2-D matrix to signed `bits`-bit integers.
-
-    Returns (ints, scales): int64 array of x's shape with |ints| <=
-    2**(bits - 1) - 1, and float32 scales, one per column, such that
-    ``dequantise_from_bits(ints, scales)`` is within scale / 2 of x.  The
-    scales are float32 because that is how they are stored; quantising with
-    the rounded scale keeps that bound exact.  An all-zero column gets scale 0.
-    """
-    x = np.asarray(x, np.float64)
-    if x.ndim != 2:
-        raise ValueError(f"expected a 2-D matrix, got shape {x.shape}")
-    if not 2 <= bits <= 32:
-        raise ValueError(f"bits must be between 2 and 32, got {bits}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("matrix contains NaN or infinity")
-    largest = 2 ** (bits - 1) - 1
-    peak = np.abs(x).max(axis=0, initial=0.0)
-    scales = (peak / largest).astype(np.float32)
-    # float32 rounding may have made a scale too small for the peak to fit; bump it.
-    too_small = scales.astype(np.float64) * largest < peak
-    scales[too_small] = np.nextafter(scales[too_small], np.float32(np.inf))
-    safe = np.where(scales > 0, scales, 1.0).astype(np.float64)
-    ints = np.clip(np.rint(x / safe), -largest, largest).astype(np.int64)
-    return ints, scales
-
-
-def dequantise_from_bits(ints, scales) -> np.ndarray:
-    """Inverse of `quantise_to_bits`: ints * scale per column, as float64."""
-    return np.asarray(ints, np.int64) * np.asarray(scales, np.float32).astype(np.float64)

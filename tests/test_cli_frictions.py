@@ -1,0 +1,167 @@
+"""CLI frictions a new user hit (issue 14): `-o -`, options --lossless ignores, files that are not
+archives, the progress bar's unit, `info`'s wording and clip table, plurals, Ctrl-C at start-up."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import pytest
+from click.testing import CliRunner
+
+from mocapzip import archive, progress
+from mocapzip.cli.main import main
+from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader
+
+GOLDEN_LOSSY = Path(__file__).parent / "golden" / f"lossy_v{FORMAT_VERSION}.mcz"
+NOT_HDF5 = "header: not an mcz archive (not an HDF5 file)"
+
+
+def run(*args):
+    return CliRunner().invoke(main, [os.fspath(a) for a in args])
+
+
+@pytest.mark.parametrize("command, what", [("compress", "file"), ("decompress", "folder")])
+def test_output_to_stdout_is_a_usage_error(tmp_path, monkeypatch, command, what):
+    monkeypatch.chdir(tmp_path)
+    source = GOLDEN_LOSSY if command == "decompress" else tmp_path / "x.amc"
+    result = run(command, source, "-o", "-")
+    assert result.exit_code == 2
+    assert "writing to stdout is not supported" in result.stderr and f"name a {what}" in result.stderr
+    assert list(tmp_path.iterdir()) == []  # no file or folder named "-"
+
+
+@pytest.mark.parametrize("option", [["-e", "1.0"], ["--error", "0.5"], ["-r", "channels"], ["-t", "dwt"],
+                                    ["--wavelet", "db2"], ["--level", "2"], ["--split", "1,1,1"], ["--segment"]])
+def test_lossy_only_options_refused_with_lossless(tmp_path, option):
+    """Given explicitly, even at its default value (-e 1.0): --lossless would silently ignore it."""
+    result = run("compress", tmp_path / "x.amc", "-o", tmp_path / "db.mcz", "--lossless", *option)
+    assert result.exit_code == 2
+    name = {"-e": "--error", "-r": "--representation", "-t": "--transform"}.get(option[0], option[0])
+    assert f"Error: {name} has no meaning with --lossless" in result.stderr
+    assert not (tmp_path / "db.mcz").exists()
+
+
+def test_several_lossy_only_options_named_together(tmp_path):
+    result = run("compress", tmp_path / "x.amc", "-o", tmp_path / "db.mcz", "-e", "2", "--lossless", "--segment")
+    assert result.exit_code == 2 and "--error, --segment have no meaning with --lossless" in result.stderr
+
+
+@pytest.fixture
+def not_archives(tmp_path, shared_data):
+    (tmp_path / "empty.mcz").write_bytes(b"")
+    (tmp_path / "notes.txt").write_text("hello\n")
+    (tmp_path / "09_01.amc").write_bytes((shared_data / "cmu" / "09" / "09_01.amc").read_bytes())
+    return [tmp_path / "empty.mcz", tmp_path / "notes.txt", tmp_path / "09_01.amc"]
+
+
+@pytest.mark.parametrize("command", ["info", "test"])
+def test_not_an_archive_in_one_line(not_archives, command):
+    for path in not_archives:
+        result = run(command, path)
+        assert result.exit_code == 1 and result.stdout == ""
+        assert result.stderr == f"mcz: error: {path}: {NOT_HDF5}\n"
+
+
+def test_hdf5_signature_after_a_user_block_is_still_hdf5(tmp_path):
+    """HDF5 also looks at offsets 512, 1024, ...: such a file is HDF5, only not ours."""
+    path = tmp_path / "userblock.h5"
+    with h5py.File(path, "w", userblock_size=512) as f:
+        f.attrs["magic"], f.attrs["format_version"] = "something else", 1
+    with pytest.raises(ArchiveError, match="header: not a mocapzip archive .magic"):
+        ArchiveReader(path)
+
+
+def test_progress_counts_frames(tmp_path, shared_data, monkeypatch):
+    """The coding bar's total is the frames coded, advanced class by class (one subject: not 0/1)."""
+    bars = []
+    real = archive.progress
+
+    def recording(iterable=None, **kwargs):
+        bar = real(iterable, **kwargs)
+        if iterable is None:
+            bars.append((kwargs, bar))
+            updates = bar.updates = []
+            bar.update = lambda n=1: updates.append(n)
+        return bar
+
+    monkeypatch.setattr(archive, "progress", recording)
+    clips = [shared_data / "cmu" / "09" / "09_01.amc", shared_data / "cmu" / "09" / "09_03.amc"]
+    summary = archive.compress(clips, tmp_path / "db.mcz", archive.Settings(error_cm=2.0), jobs=1)
+    [(kwargs, bar)] = bars
+    assert kwargs["unit"] == "frame" and kwargs["total"] == summary["frames"] == sum(bar.updates)
+
+
+def test_quiet_progress_is_disabled(monkeypatch):
+    monkeypatch.setattr(progress, "QUIET", True)
+    with progress.progress(total=10, unit="frame") as bar:
+        bar.update(10)
+        assert bar.disable
+
+
+def test_info_text_table_wording_and_plurals():
+    result = run("info", GOLDEN_LOSSY)
+    assert result.exit_code == 0
+    report = json.loads(run("info", "--json", GOLDEN_LOSSY).stdout)
+    text = result.stdout
+    assert f"largest clip mean error {report['worst_error_cm']:.3f} cm (max {report['largest_max_error_cm']:.3f} cm)" in text
+    assert report["largest_mean_error_cm"] == report["worst_error_cm"] == max(c["error_cm"] for c in report["clips"])
+    assert report["largest_max_error_cm"] == max(c["max_error_cm"] for c in report["clips"])
+    assert "worst clip error" not in text and "1 clips" not in text and "class 09: 1 clip, " in text
+    names = [c["name"] for c in report["classes"]]
+    for clip in report["clips"]:
+        row = f"{clip['frames']:>7}  {names[clip['class']]:<8}  {clip['error_cm']:>8.3f}  {clip['max_error_cm']:>8.3f}"
+        assert any(line.startswith(clip["path"]) and line.endswith(row) for line in text.splitlines())
+    short = run("info", "--no-clips", GOLDEN_LOSSY).stdout
+    assert "mean cm" not in short and short.splitlines() == [line for line in text.splitlines()
+                                                              if not line.startswith(("clip ", "09_01", "64_01"))]
+
+
+def test_test_and_decompress_summaries_say_one_clip(tmp_path):
+    result = run("decompress", GOLDEN_LOSSY, "-o", tmp_path / "out", "--clip", "09_*")
+    assert result.exit_code == 0 and result.stderr.startswith("1 clip, 148 frames -> ")
+    assert run("test", GOLDEN_LOSSY).stderr == f"{GOLDEN_LOSSY}: OK (2 clips)\n"
+
+
+# The child delays the import of click (which cli/main.py makes first, as a real slow start-up
+# would) until the test has interrupted it: no timing guess decides where the signal lands.
+SLOW_START = r"""
+import os, sys, time
+from pathlib import Path
+
+class SlowClick:
+    def find_spec(self, name, path=None, target=None):
+        if name == "click":
+            Path(os.environ["MCZ_TEST_MARKER"]).touch()
+            time.sleep(60)
+        return None
+
+sys.meta_path.insert(0, SlowClick())
+from mocapzip.cli.main import main
+main(prog_name="mcz")
+"""
+
+
+def test_ctrl_c_during_start_up_is_one_line(tmp_path):
+    marker = tmp_path / "importing"
+    env = {**os.environ, "MCZ_TEST_MARKER": os.fspath(marker)}
+    child = subprocess.Popen([sys.executable, "-c", SLOW_START, "info", os.fspath(GOLDEN_LOSSY)], env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(600):
+            if marker.exists() or child.poll() is not None:
+                break
+            time.sleep(0.05)
+        assert marker.exists(), child.communicate()
+        child.send_signal(signal.SIGINT)
+        stdout, stderr = child.communicate(timeout=30)
+    finally:
+        child.kill()
+    assert stderr == "mcz: error: interrupted (SIGINT)\n" and stdout == ""
+    assert child.returncode in (1, 130, -signal.SIGINT)
