@@ -7,6 +7,7 @@ import os
 
 import click
 
+from .choices import REPRESENTATIONS, TRANSFORMS
 from .errors import reports_errors
 
 CODEC_CHOICES = ("mcz", "hou", "hou-shared", "xz", "zstd")
@@ -43,9 +44,9 @@ def _codecs(values):
 @click.option("-e", "--error", "errors", multiple=True, type=click.FloatRange(min=0, min_open=True), metavar="CM",
               help="Target mean joint error in cm (repeat for a sweep; default 1.0). Hou et al. get the same targets.")
 @click.option("-r", "--representation", "representations", multiple=True,
-              type=click.Choice(["channels", "positions", "aligned", "scaled", "normalised"]),
+              type=click.Choice(REPRESENTATIONS),
               help="What mcz compresses (repeat for a sweep; default aligned).")
-@click.option("-t", "--transform", "transforms", multiple=True, type=click.Choice(["dct", "dwt", "none"]),
+@click.option("-t", "--transform", "transforms", multiple=True, type=click.Choice(TRANSFORMS),
               help="Temporal transform (repeat for a sweep; default dct).")
 @click.option("--wavelet", default="db4", show_default=True, help="Wavelet for --transform dwt.")
 @click.option("-c", "--classes", "classes", multiple=True, metavar="MODE",

@@ -15,9 +15,9 @@ import json
 
 import click
 
+from .choices import REPRESENTATIONS
 from .errors import reports_errors
 
-REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
 
 
 class _ListOptions(click.Command):

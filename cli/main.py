@@ -16,6 +16,7 @@ from click.core import ParameterSource
 from .. import __version__
 from .bench import bench
 from .classify import classify
+from .choices import REPRESENTATIONS, TRANSFORMS
 from .errors import reports_errors
 
 
@@ -110,9 +111,9 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--lossless", is_flag=True,
               help="Every AMC value comes back as written; refuses the lossy-only options "
                    "-e, -r, -t, --wavelet, --level, --split and --segment.")
-@click.option("-r", "--representation", type=click.Choice(["channels", "positions", "aligned", "scaled", "normalised"]),
+@click.option("-r", "--representation", type=click.Choice(REPRESENTATIONS),
               default="aligned", show_default=True, help="What the codec compresses (thesis section 3.2.1).")
-@click.option("-t", "--transform", type=click.Choice(["dct", "dwt", "none"]), default="dct", show_default=True,
+@click.option("-t", "--transform", type=click.Choice(TRANSFORMS), default="dct", show_default=True,
               help="Temporal transform of the PCA curves.")
 @click.option("--wavelet", default="db4", show_default=True, help="PyWavelets wavelet name for --transform dwt.")
 @click.option("--level", type=click.IntRange(min=1), default=None, help="DWT levels (default: as many as the clip allows).")

@@ -35,7 +35,7 @@ from .formats.amc import AmcStyle, Motion, format_amc
 from .formats.asf import parse_asf
 from .formats.errors import MocapFormatError
 from .formats.text import MAX_ABS_VALUE, open_regular_file
-from .formats.mcz import ArchiveError, ArchiveReader, ArchiveWriter
+from .formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader, ArchiveWriter
 from .inputs import ClipSource, find_clips, record_skip
 from .meta import parse_json
 from .meta import validate as validate_meta
@@ -43,12 +43,14 @@ from .limits import MAX_COEFFICIENTS_PER_MATRIX
 from .lossy import ClassBasis, CodedClip, TargetError, code_clip, encode_class, interim_coder, reconstruct
 from .skeleton import ChannelLayout, SkeletonModel
 from .progress import progress
+from .representations import get_representation
 from .representations.base import Encoded
 from .representations.positions import flips_from_ranges
 from .segment import OVERLAP, coded_range, join_segments, segment_take
 
 DEFAULT_ERROR_CM = 1.0
 TIGHTENINGS = 8  # times a segmented take's segments are coded again, 10 % tighter, if the joined take misses
+WRITTEN_CODERS = ("auto", "primed", "context")  # clip stream coders compress writes; "zstd" is read only
 DEFAULT_CACHE_MB = 512  # clips kept in memory between compress's passes (clip.ClipReader)
 
 
@@ -90,6 +92,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     `--classes auto` and `--segment` analyse the poses of all clips together: they keep every
     clip in memory.
     """
+    _check_settings(settings)
     if not force and os.path.lexists(output):
         raise FileExistsError(None, "already exists", os.fspath(output))
     started = time.perf_counter()
@@ -159,6 +162,16 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "seconds": time.perf_counter() - started,
         "skipped": skipped or [],
     }
+
+
+def _check_settings(settings: Settings) -> None:
+    """Refuse, before any input is read, settings this format version cannot hold: an unknown
+    stage, or clip streams in format 1's "zstd" layout (read, never written)."""
+    if settings.coefficient_coder not in WRITTEN_CODERS:
+        raise ValueError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
+                         f"{FORMAT_VERSION}; choose one of {', '.join(WRITTEN_CODERS)}")
+    get_stage(settings.transform)
+    get_representation(settings.representation)
 
 
 def _file_bytes(path) -> bytes:

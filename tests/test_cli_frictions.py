@@ -165,3 +165,29 @@ def test_ctrl_c_during_start_up_is_one_line(tmp_path):
         child.kill()
     assert stderr == "mcz: error: interrupted (SIGINT)\n" and stdout == ""
     assert child.returncode in (1, 130, -signal.SIGINT)
+
+
+def test_cli_choices_are_the_registered_stages():
+    """`-t` and `-r` offer exactly what the registries build (`-t none` once died with 'unknown stage id')."""
+    from mocapzip.cli import choices
+    from mocapzip.codec import TRANSFORMS, get_stage
+    from mocapzip.representations import NAMES
+
+    assert choices.TRANSFORMS == TRANSFORMS and choices.REPRESENTATIONS == NAMES
+    for name in TRANSFORMS:
+        assert get_stage({"id": name}).get_config()["id"] == name
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"coefficient_coder": "zstd"}, "coefficient_coder 'zstd' is not written by format"),
+    ({"transform": {"id": "none"}}, "unknown stage id 'none'"),
+    ({"representation": "quaternions"}, "unknown representation 'quaternions'"),
+])
+def test_settings_an_archive_cannot_hold_are_refused_before_any_input_is_read(tmp_path, change, message):
+    from dataclasses import replace
+
+    from mocapzip.archive import Settings, compress
+
+    with pytest.raises((ValueError, KeyError), match=message):
+        compress([tmp_path / "no such folder"], tmp_path / "x.mcz", replace(Settings(), **change))
+    assert list(tmp_path.iterdir()) == []

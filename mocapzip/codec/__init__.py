@@ -13,7 +13,7 @@ entropy and lossless hold data-driven or fixed steps and are used directly.
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.codec.temporal import DctTransform, DwtTransform, IdentityTransform
 
-__all__ = ["get_stage", "register_stage"]
+__all__ = ["TRANSFORMS", "get_stage", "register_stage"]
 
 _REGISTRY = {}
 
@@ -41,3 +41,5 @@ def get_stage(config: dict):
 
 for _stage in (DctTransform, DwtTransform, IdentityTransform, UniformQuantiser):
     register_stage(_stage)
+
+TRANSFORMS = tuple(stage.codec_id for stage in (DctTransform, DwtTransform, IdentityTransform))  # temporal, by id
