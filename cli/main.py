@@ -116,7 +116,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("-t", "--transform", type=click.Choice(TRANSFORMS), default="dct", show_default=True,
               help="Temporal transform of the PCA curves.")
 @click.option("--wavelet", default="db4", show_default=True, help="PyWavelets wavelet name for --transform dwt.")
-@click.option("--level", type=click.IntRange(min=1), default=None, help="DWT levels (default: as many as the clip allows).")
+@click.option("--level", type=click.IntRange(min=1, max=32), default=None, help="DWT levels (default: as many as the clip allows).")
 @click.option("-c", "--classes", default="subject", show_default=True,
               help="Clips sharing one PCA basis: single, subject (one per skeleton), FILE.csv (clip path, class), "
                    "or auto[:K]: K classes found from the poses without labels (K chosen by archive size if omitted).")
@@ -152,7 +152,8 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
     Examples:
       mcz compress ../shared/data/cmu -o cmu.mcz                 every clip within 1 cm
       mcz compress ../shared/data/cmu -o cmu.mcz -e 0.5 -c single one basis for all clips
-      mcz compress ../shared/data/cmu -o cmu.mcz --lossless      exact AMC values back
+      mcz compress ../shared/data/cmu -o cmu.mcz --lossless --skip-bad  exact AMC values back
+                                                                 (a clip cut short is skipped, and listed)
       mcz compress ../shared/data/cmu -o cmu.mcz -c auto --segment  classes (and cuts) found from the poses
     """
     if lossless:
@@ -166,8 +167,11 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
     settings = archive.Settings(error_cm=error_cm, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=fps, lossless=lossless,
                                 segment=segment)
-    summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad,
-                               cache_bytes=cache_mb << 20)
+    try:
+        summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad,
+                                   cache_bytes=cache_mb << 20)
+    except archive.SettingsError as exc:  # e.g. --wavelet foo, --fps inf: a usage error, before any work
+        raise click.UsageError(str(exc)) from None
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     elif not quiet:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import fnmatch
 import json
+import math
 import os
 import secrets
 import time
@@ -39,7 +40,7 @@ from .formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader, ArchiveWri
 from .inputs import ClipSource, find_clips, record_skip
 from .meta import parse_json
 from .meta import validate as validate_meta
-from .limits import MAX_COEFFICIENTS_PER_MATRIX
+from .limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
 from .lossy import ClassBasis, CodedClip, TargetError, code_clip, encode_class, interim_coder, reconstruct
 from .skeleton import ChannelLayout, SkeletonModel
 from .progress import progress
@@ -92,7 +93,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     `--classes auto` and `--segment` analyse the poses of all clips together: they keep every
     clip in memory.
     """
-    _check_settings(settings)
+    settings = _checked_settings(settings)
     if not force and os.path.lexists(output):
         raise FileExistsError(None, "already exists", os.fspath(output))
     started = time.perf_counter()
@@ -144,9 +145,16 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         if skipped:
             meta["skipped"] = skipped
         order = ["meta", "skeletons", *sorted(writer.names)]
-        writer.add("meta", encode_bytes(json.dumps(meta, sort_keys=True).encode()))
-        writer.add("skeletons", encode_bytes(json.dumps([_file_bytes(p).decode("latin-1")
-                                                         for p in skeleton_paths]).encode()))
+        skeleton_texts = [_file_bytes(p).decode("latin-1") for p in skeleton_paths]
+        # Checked as every reader checks them: compress never writes an archive a reader refuses.
+        validate_meta(meta, order, os.fspath(output))
+        for name, value in (("meta", meta), ("skeletons", skeleton_texts)):
+            text = json.dumps(value, sort_keys=name == "meta").encode()
+            if len(text) > MAX_DECODED_STREAM_BYTES:
+                raise MocapFormatError(f"the archive's {name} would take {len(text):,} bytes, more than the "
+                                       f"{MAX_DECODED_STREAM_BYTES:,} a reader accepts: compress fewer clips at once",
+                                       output)
+            writer.add(name, encode_bytes(text))
         size = writer.commit(order)
     frames = sum(r["frames"] for r in rows)
     return {
@@ -164,14 +172,27 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     }
 
 
-def _check_settings(settings: Settings) -> None:
-    """Refuse, before any input is read, settings this format version cannot hold: an unknown
-    stage, or clip streams in format 1's "zstd" layout (read, never written)."""
+class SettingsError(ValueError):
+    """Settings an archive of this format cannot hold; raised before any input is read."""
+
+
+def _checked_settings(settings: Settings) -> Settings:
+    """`settings` with the transform's config as its stage writes it (pywt takes 'DB4' for
+    'db4'; readers check the name), or SettingsError for an unknown stage or representation,
+    a number that is not finite, or clip streams in format 1's "zstd" layout (read, never written)."""
     if settings.coefficient_coder not in WRITTEN_CODERS:
-        raise ValueError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
-                         f"{FORMAT_VERSION}; choose one of {', '.join(WRITTEN_CODERS)}")
-    get_stage(settings.transform)
-    get_representation(settings.representation)
+        raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
+                            f"{FORMAT_VERSION}; choose one of {', '.join(WRITTEN_CODERS)}")
+    numbers = [settings.error_cm, settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
+               settings.fps, *(settings.split or [])]
+    if not all(math.isfinite(x) for x in numbers):
+        raise SettingsError("settings must be finite numbers (no inf or nan)")
+    try:
+        transform = get_stage(settings.transform).get_config()
+        get_representation(settings.representation)
+    except (ValueError, KeyError) as exc:
+        raise SettingsError(str(exc).strip('"')) from None
+    return replace(settings, transform=transform)
 
 
 def _file_bytes(path) -> bytes:
@@ -185,7 +206,11 @@ def _refuse_input_as_output(output, inputs: list) -> None:
         return
     target = os.stat(output)
     for path in inputs:
-        if path is not None and os.path.samestat(target, os.stat(path)):
+        try:
+            same = path is not None and os.path.samestat(target, os.stat(path))
+        except OSError:  # a dangling link: nothing there to destroy (the clip is refused or skipped on its own)
+            continue
+        if same:
             raise MocapFormatError(f"is also an input ({path}); refusing to replace it, even with -f", output)
 
 
@@ -455,7 +480,7 @@ class Archive:
             return parse_json(decode_bytes(self._reader.read(name)))
         except KeyError:
             raise ArchiveError(f"{name}: stream missing", self.path) from None
-        except ValueError as exc:  # also bad UTF-8 and bad JSON
+        except (ValueError, RecursionError) as exc:  # also bad UTF-8, bad JSON and JSON nested too deep
             raise ArchiveError(f"{name}: {exc}", self.path) from exc
 
     def __enter__(self):
@@ -499,11 +524,11 @@ class Archive:
         row = self.clips[index]
         name = f"clip/{index:05d}"
         try:
-            model = self._model(row["skeleton"])
-            layout = model.layout(ChannelLayout(tuple(row["bones"]), tuple(row["counts"]), row["angle_unit"]))
             if self.settings.lossless:
                 values = decode_channels(self._reader.read(name))
             else:
+                model = self._model(row["skeleton"])
+                layout = model.layout(ChannelLayout(tuple(row["bones"]), tuple(row["counts"]), row["angle_unit"]))
                 name_ = self.settings.representation
                 if "segments" in row:  # --segment: the segments joined, then turned into channels in one go
                     decoded, cores = [], []

@@ -24,7 +24,7 @@ MAX_DOF_PER_BONE = 7  # an ASF bone's channels: rx ry rz tx ty tz l
 
 _COUNT = {"type": "integer", "minimum": 0}
 _ERROR = {"type": "number", "minimum": 0}
-_POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+_POSITIVE = {"type": "number", "minimum": 0, "exclusiveMinimum": True}
 _NEWLINE = {"enum": ["\n", "\r\n", "\r"]}
 _STRING = {"type": "string"}
 
@@ -77,9 +77,9 @@ _CLIP = _record(
 )
 
 _TRANSFORM = {"anyOf": [
-    _record({"id": {"const": "dct"}}),
-    _record({"id": {"const": "identity"}}),
-    _record({"id": {"const": "dwt"}, "wavelet": _STRING,
+    _record({"id": {"enum": ["dct"]}}),
+    _record({"id": {"enum": ["identity"]}}),
+    _record({"id": {"enum": ["dwt"]}, "wavelet": _STRING,
              "level": {"anyOf": [{"type": "integer", "minimum": 0, "maximum": 32}, {"type": "null"}]}}),
 ]}
 
@@ -109,7 +109,7 @@ _AUTO_GROUP = _record(
                                                        {"seed": {"type": ["integer", "null"]}})}},
 )
 
-SCHEMA = _record(
+SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
     {
         "tool": _STRING,
         "settings": _SETTINGS,
@@ -122,7 +122,7 @@ SCHEMA = _record(
         "auto_classes": {"type": "array", "items": _AUTO_GROUP},
         "skipped": {"type": "array", "items": _record({"path": _STRING, "error": _STRING})},
     },
-)
+)}  # draft 4: an "integer" is one in the JSON text too (later drafts also take 5.0)
 
 
 @functools.cache
@@ -212,6 +212,8 @@ def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: 
         return [f"clip/{i:05d}"]
     if not settings.get("segment") or "segment_overlap" not in row:
         raise fail(f"{where}.segments", "segments need the setting 'segment' and the row's 'segment_overlap'")
+    if row["segment_overlap"] > min(part["frames"] for part in row["segments"]):
+        raise fail(f"{where}.segment_overlap", "reaches past a whole segment (each segment would decode the take)")
     first, streams = 0, []
     for s, part in enumerate(row["segments"]):
         stream = f"clip/{i:05d}/{s:03d}"
@@ -237,12 +239,12 @@ def _check_file_name(name: str, field: str, fail, whole: str | None = None) -> N
     shown = repr((whole or name)[:80])
     if name in ("", ".", ".."):
         raise fail(field, f"{shown} leaves the output folder or names no file" if whole or name else "empty name")
-    if "/" in name or "\0" in name or len(name.encode("utf-8", "surrogatepass")) > MAX_NAME_BYTES:
-        raise fail(field, f"{shown} is not one file name of at most {MAX_NAME_BYTES} bytes without '/' or NUL")
-    try:
-        name.encode("utf-8")
+    try:  # a name read from disk keeps bytes that are not UTF-8 as surrogate escapes (os.fsdecode)
+        size = len(name.encode("utf-8", "surrogateescape"))
     except UnicodeEncodeError:
-        raise fail(field, f"{shown} is not valid UTF-8 text") from None
+        raise fail(field, f"{shown} is not a file name this system can write") from None
+    if "/" in name or "\0" in name or size > MAX_NAME_BYTES:
+        raise fail(field, f"{shown} is not one file name of at most {MAX_NAME_BYTES} bytes without '/' or NUL")
 
 
 def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
@@ -254,8 +256,10 @@ def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
     files: dict[str, tuple[str, int]] = {}
 
     def claim(path: str, what: tuple[str, int], field: str) -> None:
-        if files.setdefault(path, what) != what:
-            raise fail(field, f"{path[:80]!r} is written twice (also by {files[path][0]} {files[path][1]})")
+        kind, index = files.setdefault(path, what)
+        if (kind, index) != what:
+            raise fail(field, f"{path[:80]!r} is written twice (already {'clip' if kind == 'amc' else 'skeleton'} "
+                              f"{index}'s file)")
 
     for i, row in enumerate(meta["clips"]):
         claim(row["path"], ("amc", i), f"clips[{i}].path")

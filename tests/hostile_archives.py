@@ -159,6 +159,14 @@ def cases(watched: Path) -> list[Case]:
         ("encoding_rot13", _set("clips.0.style.encoding", "rot13"), "meta: clips[0].style.encoding"),
         ("skeleton_99", _set("clips.0.skeleton", 99), "meta: clips[0].skeleton"),
         ("first_frame_string", _set("clips.0.first_frame", "1"), "meta: clips[0].first_frame"),
+        ("skeleton_index_float", _set("clips.0.skeleton", 0.0), "meta: clips[0].skeleton"),
+        ("overlap_beyond_segments", _both(_set("settings.segment", True), _set("clips.0.segment_overlap", 10**5),
+                                          _set("clips.0.segments", [
+                                              {"first": 0, "frames": 74, "class": 0, "stream": "clip/00000/000",
+                                               "error_cm": 0, "max_error_cm": 0},
+                                              {"first": 74, "frames": 74, "class": 0, "stream": "clip/00000/001",
+                                               "error_cm": 0, "max_error_cm": 0}])),
+         "meta: clips[0].segment_overlap"),
         ("clips_dict", _set("clips", {"0": {}}), "meta: clips"),
         ("no_settings", _delete("settings"), "meta: (top level)"),
         ("transform_none", _set("settings.transform", {"id": "none"}), "meta: settings.transform"),
@@ -182,6 +190,8 @@ def cases(watched: Path) -> list[Case]:
          "meta: clips[0].segments"),
     ):
         c.append(Case(f"meta_{label}", "lossy", edit, section))
+    c.append(Case("meta_nested_200000_deep", "lossy", _stream("meta", entropy.encode_bytes(b"[" * 200_000 + b"]" * 200_000)),
+                  "meta"))
     c.append(Case("meta_nan", "lossy", _stream("meta", entropy.encode_bytes(b'{"error_cm": NaN}')), "meta"))
     c.append(Case("meta_not_json", "lossy", _stream("meta", entropy.encode_bytes(b"\xff{")), "meta"))
     c.append(Case("meta_is_a_list", "lossy", _stream("meta", _json_stream([])), "meta: (top level)"))
@@ -206,7 +216,7 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("skeletons_one_short", "lossless", _stream("skeletons", _json_stream(["x"])), "skeletons"))
     c.append(Case("skeleton_not_latin1", "lossless", _stream("skeletons", _json_stream(["\u20ac", "\u20ac"])),
                   "skeletons"))
-    c.append(Case("skeleton_not_asf", "lossless", _stream("skeletons", _json_stream(["hello", "hello"])),
+    c.append(Case("skeleton_not_asf", "lossy", _stream("skeletons", _json_stream(["hello", "hello"])),
                   "skeletons: skeleton 0", decoded=True))
     return c
 

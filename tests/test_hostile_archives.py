@@ -7,6 +7,7 @@ nothing may appear anywhere in the temporary tree the case runs in.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -30,3 +31,33 @@ def test_every_golden_archive_passes_the_same_checks(tmp_path):
             result = hostile_archives.run_mcz(*map(str, command))
             assert result.returncode == 0, result.stderr
         assert sorted(p.name for p in out.iterdir()) == ["09.asf", "09_01.amc", "64.asf", "64_01.amc"]
+
+
+def test_compress_refuses_what_readers_would_refuse(shared_data, tmp_path):
+    """Two input folders whose skeletons share a file name, clips stored side by side: the
+    archive would write both ASFs to one path, which every reader refuses; so compress does."""
+    for folder, subject, clip in (("a", "09", "09_01.amc"), ("b", "07", "07_01.amc")):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "actor.asf").write_bytes((shared_data / "cmu" / subject / f"{subject}.asf").read_bytes())
+        (tmp_path / folder / clip).write_bytes((shared_data / "cmu" / subject / clip).read_bytes())
+    archive = tmp_path / "db.mcz"
+    result = hostile_archives.run_mcz("compress", str(tmp_path / "a"), str(tmp_path / "b"), "-o", str(archive),
+                                      "--lossless", "-q")
+    assert result.returncode == 1 and result.stderr.splitlines() == [
+        f"mcz: error: {archive}: meta: clips[1].skeleton: 'actor.asf' is written twice (already skeleton 1's file)"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]
+
+
+def test_file_names_that_are_not_utf8_round_trip(shared_data, tmp_path):
+    """A name read from disk keeps its non-UTF-8 bytes (surrogate escapes) and is written back as it was."""
+    folder, out = tmp_path / "in", tmp_path / "out"
+    folder.mkdir()
+    name = b"T\xe4nzer.amc"
+    (folder / "09.asf").write_bytes((shared_data / "cmu" / "09" / "09.asf").read_bytes())
+    (folder / os.fsdecode(name)).write_bytes((shared_data / "cmu" / "09" / "09_01.amc").read_bytes())
+    archive = tmp_path / "db.mcz"
+    for command in (("compress", folder, "-o", archive, "--lossless", "-q"), ("test", "-q", archive),
+                    ("decompress", archive, "-o", out, "-q")):
+        result = hostile_archives.run_mcz(*map(str, command))
+        assert result.returncode == 0, result.stderr
+    assert sorted(os.listdir(os.fsencode(out))) == [b"09.asf", name]
