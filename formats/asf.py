@@ -27,7 +27,7 @@ import numpy as np
 
 from ..limits import MAX_BONES_PER_SKELETON
 from .errors import MocapFormatError
-from .text import decode_text, integer, number, open_regular_file, split_lines
+from .text import decode_text, integer, number, read_regular_file, split_lines
 
 __all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "format_asf", "write_asf"]
 
@@ -110,8 +110,7 @@ class Skeleton:
 def read_asf(path: str | os.PathLike) -> Skeleton:
     """Parse an ASF file; raise MocapFormatError naming file and line on bad input."""
     path = os.fspath(path)
-    with open_regular_file(path) as fh:
-        data = fh.read()
+    data = read_regular_file(path)
     return _AsfParser(split_lines(decode_text(data, path)), path, stacklevel=4).parse()
 
 

@@ -53,6 +53,12 @@ def check_regular_file(st: os.stat_result, path) -> None:
         raise MocapFormatError(f"not a regular file: {kind}", path)
 
 
+def read_regular_file(path) -> bytes:
+    """The bytes of `path`, opened by `open_regular_file`."""
+    with open_regular_file(path) as file:
+        return file.read()
+
+
 def open_regular_file(path) -> io.BufferedReader:
     """`path` opened for binary reading; MocapFormatError if it is not a regular file (a symbolic
     link to one is fine), OSError if it cannot be opened.

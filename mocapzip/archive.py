@@ -35,7 +35,7 @@ from .codec.pca import CovarianceAccumulator
 from .formats.amc import AmcStyle, Motion, format_amc
 from .formats.asf import parse_asf
 from .formats.errors import MocapFormatError
-from .formats.text import MAX_ABS_VALUE, open_regular_file
+from .formats.text import MAX_ABS_VALUE, read_regular_file
 from .formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader, ArchiveWriter
 from .inputs import ClipSource, find_clips, record_skip
 from .meta import parse_json
@@ -145,7 +145,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         if skipped:
             meta["skipped"] = skipped
         order = ["meta", "skeletons", *sorted(writer.names)]
-        skeleton_texts = [_file_bytes(p).decode("latin-1") for p in skeleton_paths]
+        skeleton_texts = [read_regular_file(p).decode("latin-1") for p in skeleton_paths]
         # Checked as every reader checks them: compress never writes an archive a reader refuses.
         validate_meta(meta, order, os.fspath(output))
         for name, value in (("meta", meta), ("skeletons", skeleton_texts)):
@@ -157,6 +157,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
             writer.add(name, encode_bytes(text))
         size = writer.commit(order)
     frames = sum(r["frames"] for r in rows)
+    largest_mean = max(r["error_cm"] for r in rows)
     return {
         "output": os.fspath(output),
         "clips": len(rows),
@@ -164,8 +165,8 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "input_bytes": sum(os.path.getsize(s.amc) for s in sources) + sum(os.path.getsize(p) for p in skeleton_paths),
         "output_bytes": size,
         "bytes_per_frame": size / frames,
-        "worst_error_cm": max(r["error_cm"] for r in rows),  # kept for old readers: largest_mean_error_cm
-        "largest_mean_error_cm": max(r["error_cm"] for r in rows),  # what -e bounds
+        "worst_error_cm": largest_mean,  # kept for old readers: largest_mean_error_cm
+        "largest_mean_error_cm": largest_mean,  # what -e bounds
         "largest_max_error_cm": max(r["max_error_cm"] for r in rows),
         "seconds": time.perf_counter() - started,
         "skipped": skipped or [],
@@ -193,11 +194,6 @@ def _checked_settings(settings: Settings) -> Settings:
     except (ValueError, KeyError) as exc:
         raise SettingsError(str(exc).strip('"')) from None
     return replace(settings, transform=transform)
-
-
-def _file_bytes(path) -> bytes:
-    with open_regular_file(path) as file:
-        return file.read()
 
 
 def _refuse_input_as_output(output, inputs: list) -> None:
@@ -687,6 +683,7 @@ def info(archive_path) -> dict:
         for name, length in archive.stream_sizes().items():
             stream_sizes[name.split("/")[0]] += length
     frames = sum(r["frames"] for r in meta["clips"])
+    largest_mean = max((r["error_cm"] for r in meta["clips"]), default=0.0)
     return {
         "path": os.fspath(archive_path),
         "format_version": format_version,
@@ -700,8 +697,8 @@ def info(archive_path) -> dict:
         "bytes": size,
         "bytes_per_frame": size / frames if frames else 0.0,
         "stream_bytes": dict(stream_sizes),
-        "worst_error_cm": max((r["error_cm"] for r in meta["clips"]), default=0.0),  # = largest_mean_error_cm
-        "largest_mean_error_cm": max((r["error_cm"] for r in meta["clips"]), default=0.0),  # what -e bounds
+        "worst_error_cm": largest_mean,  # = largest_mean_error_cm, kept for old readers
+        "largest_mean_error_cm": largest_mean,  # what -e bounds
         "largest_max_error_cm": max((r["max_error_cm"] for r in meta["clips"]), default=0.0),
         "skipped": meta.get("skipped", []),  # clips left out by compress --skip-bad
         "dropped_frames": sum(r.get("dropped_frames", 0) for r in meta["clips"]),  # of truncated inputs

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 
 from .formats.errors import MocapFormatError
-from .formats.text import open_regular_file
+from .formats.text import read_regular_file
 from .inputs import ClipSource
 from .limits import MAX_PATH_BYTES
 
@@ -61,8 +61,7 @@ def read_class_table(path) -> dict[str, str]:
     path = Path(path)
     if not path.exists():
         raise MocapFormatError("class table not found", path)
-    with open_regular_file(path) as fh:
-        lines = fh.read().decode("utf-8", errors="replace").splitlines()
+    lines = read_regular_file(path).decode("utf-8", errors="replace").splitlines()
     if not lines:
         raise MocapFormatError("class table is empty", path)
     reader = csv.reader(lines, dialect="excel-tab" if "\t" in lines[0] else "excel")

@@ -263,8 +263,9 @@ def _decompress_frame(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES):
     """Decompress the zstd frame at the start of `blob`; return (data, bytes after the frame).
 
     A few kilobytes of zstd can unpack to gigabytes: the size the frame header declares is
-    checked against `limit` first, then the frame is unpacked a step at a time and refused
-    as soon as its output passes `limit`, so it never holds much more than that.
+    checked against `limit` first. A frame that states its size (every one this project writes;
+    zstd refuses a frame that outgrows it) is unpacked in one call; one that does not is unpacked
+    a step at a time and refused as soon as its output passes `limit`, so it never holds much more.
     """
     blob = bytes(blob)
     view = memoryview(blob)
@@ -273,11 +274,12 @@ def _decompress_frame(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES):
         declared = zstandard.frame_content_size(blob)  # -1: not declared
         if declared > limit:
             raise ValueError(f"zstd stream unpacks to {declared} bytes, more than the limit of {limit}")
+        step = len(blob) if declared >= 0 else _UNPACK_STEP
         with _DECOMPRESSOR_LOCK:
             stream = _DECOMPRESSOR.decompressobj()
             while not stream.eof and position < len(blob):
-                parts.append(stream.decompress(view[position : position + _UNPACK_STEP]))
-                position += _UNPACK_STEP
+                parts.append(stream.decompress(view[position : position + step]))
+                position += step
                 size += len(parts[-1])
                 if size > limit:
                     raise ValueError(f"zstd stream unpacks to more than the limit of {limit} bytes")
