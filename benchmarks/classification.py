@@ -170,7 +170,8 @@ def hdm_sections(data: Path, results: dict) -> list[str]:
 
 def compress_subset(data: Path, mode: str, work: Path, jobs: int, error_cm: float = 1.0) -> dict:
     """One real archive of COMPRESSION_SET with --classes `mode`."""
-    from mocapzip import archive, progress
+    from mocapzip import archive
+    from mocapzip import progress
 
     progress.QUIET = True
     inputs = [data / p for p in COMPRESSION_SET]

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mocapzip.archive import Archive, Settings, compress
 from mocapzip.formats.mcz import ArchiveReader
-from mocapzip.lossy import CodedClip
+from mocapzip.codec.clip_stream import CodedClip
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "cmu"
 

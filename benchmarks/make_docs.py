@@ -49,7 +49,7 @@ def main(argv=None) -> int:
         parser.error("the plots need matplotlib: pip install -e '.[plot]'")
 
     from mocapzip import __version__
-    from mocapzip.bench import RULES, _git_state
+    from mocapzip.bench.runner import RULES, _git_state
 
     log_lines: list[str] = []
     started = time.time()

@@ -27,7 +27,7 @@ CURVE_CLIPS = ("07/07_01.amc", "13/13_30.amc", "02/02_05.amc", "05/md_05.amc", "
 
 def bench_run(args: list[str], out_json: Path, log=print) -> dict:
     """`mcz bench ARGS --json out_json` in a child process; returns the report plus the child's wall time and peak RSS."""
-    from mocapzip.bench import mcz_command, run_measured
+    from mocapzip.bench.runner import mcz_command, run_measured
 
     argv = [*mcz_command(), *args, "--json", str(out_json)]
     log("$ mcz bench " + " ".join(args + ["--json", out_json.name]))

@@ -23,11 +23,12 @@ import numpy as np
 
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
-from mocapzip.inputs import find_clips
-from mocapzip.kinematics import forward
-from mocapzip.representations import NAMES, get_representation
-from mocapzip.rotations import rotation_angle
-from mocapzip.skeleton import SkeletonModel
+from mocapzip.inputs.discover import find_clips
+from mocapzip.motion.kinematics import forward
+from mocapzip.representations import get_representation
+from mocapzip.stages import stage_ids
+from mocapzip.motion.rotations import rotation_angle
+from mocapzip.motion.skeleton import SkeletonModel
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -48,8 +49,8 @@ def main() -> None:
     parser.add_argument("--step", type=int, default=1, help="use every N-th frame (default: all)")
     args = parser.parse_args()
 
-    worst = {name: {"pos": (0.0, "-"), "rot": (0.0, "-")} for name in NAMES}
-    seconds = dict.fromkeys(NAMES, 0.0)
+    worst = {name: {"pos": (0.0, "-"), "rot": (0.0, "-")} for name in stage_ids("representation")}
+    seconds = dict.fromkeys(stage_ids("representation"), 0.0)
     models: dict[Path, SkeletonModel] = {}
     skipped, n_clips, n_frames = [], 0, 0
     for clip in find_clips([args.data], require_skeleton=False):
@@ -67,7 +68,7 @@ def main() -> None:
         n_clips += 1
         n_frames += motion.n_frames
         original = forward(model, motion.values, motion)
-        for name in NAMES:
+        for name in stage_ids("representation"):
             rep = get_representation(name)
             start = time.perf_counter()
             values = rep.inverse(model, rep.forward(model, motion), motion)
@@ -84,7 +85,7 @@ def main() -> None:
     for path in skipped:
         print(f"  skipped {path}")
     print(f"{'representation':15s} {'worst pos (cm)':>15s} {'worst rot (rad)':>16s} {'encode+decode':>14s}  worst clips (pos / rot)")
-    for name in NAMES:
+    for name in stage_ids("representation"):
         (pos, pos_clip), (rot, rot_clip) = worst[name]["pos"], worst[name]["rot"]
         print(f"{name:15s} {pos:15.3e} {rot:16.3e} {seconds[name]:13.1f}s  {pos_clip} / {rot_clip}")
 

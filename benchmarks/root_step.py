@@ -5,7 +5,7 @@
 Compresses the folders (default: CMU subjects 02, 07, 13 and 35 of ../shared/data) once per
 ratio with the default settings otherwise, and prints bytes per frame and the worst clip
 error. Every archive meets the same error target, so the smallest one has the best ratio;
-`lossy.ROOT_STEP_RATIO` is set from this table (docs/architecture.md).
+`encode.ROOT_STEP_RATIO` is set from this table (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from mocapzip import lossy
+from mocapzip.ratecontrol import encode
 from mocapzip.archive import Settings, compress
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "cmu"
@@ -28,12 +28,12 @@ def main(argv=None) -> None:
     parser.add_argument("-j", "--jobs", type=int, default=2)
     parser.add_argument("--ratios", default="1,0.5,0.35,0.25,0.2,0.15,0.1")
     args = parser.parse_args(argv)
-    default = lossy.ROOT_STEP_RATIO
+    default = encode.ROOT_STEP_RATIO
     print("| root step / pose step | bytes/frame | worst clip error (cm) |")
     print("|---|---|---|")
     try:
         for ratio in (float(r) for r in args.ratios.split(",")):
-            lossy.ROOT_STEP_RATIO = ratio  # read at call time, also by forked workers
+            encode.ROOT_STEP_RATIO = ratio  # read at call time, also by forked workers
             with tempfile.TemporaryDirectory() as work:
                 summary = compress(args.inputs, Path(work) / "root.mcz", Settings(error_cm=args.error),
                                    jobs=args.jobs)
@@ -41,7 +41,7 @@ def main(argv=None) -> None:
             print(f"| {ratio:g}{mark} | {summary['bytes_per_frame']:.3f} | {summary['worst_error_cm']:.3f} |",
                   flush=True)
     finally:
-        lossy.ROOT_STEP_RATIO = default
+        encode.ROOT_STEP_RATIO = default
 
 
 if __name__ == "__main__":

@@ -40,7 +40,7 @@ def largest_clips(data: Path, count: int = 3) -> list[str]:
 
 def blas_threads(data: Path, log=print) -> dict:
     """`mcz compress cmu/07` with mcz's default (one BLAS thread per process) and one per CPU."""
-    from mocapzip.bench import run_measured
+    from mocapzip.bench.runner import run_measured
 
     out = {}
     cpus = str(os.cpu_count() or 1)
@@ -62,7 +62,7 @@ def bounded_memory(data: Path, jobs: int, log=print, quick: bool = False) -> dic
     """Peak RSS and time of `mcz compress` on the CMU set (one subject folder if `quick`) with the
     default clip cache and with none, and on the set twice over with none."""
     from mocapzip.archive import info
-    from mocapzip.bench import run_measured
+    from mocapzip.bench.runner import run_measured
 
     source = data / "cmu" / "07" if quick else data / "cmu"
     out = {}

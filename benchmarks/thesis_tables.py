@@ -118,7 +118,7 @@ class Runner:
         self.seconds = 0.0
 
     def run(self, table: str, set_name: str, clips, representations, **config) -> dict:
-        from mocapzip.bench import BenchOptions, command_line, run_bench
+        from mocapzip.bench.runner import BenchOptions, command_line, run_bench
 
         key = json.dumps(config, sort_keys=True)
         todo = [r for r in representations if (set_name, r, key) not in self.cache]

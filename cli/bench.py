@@ -7,8 +7,8 @@ import os
 
 import click
 
-from .choices import REPRESENTATIONS, TRANSFORMS
-from .errors import reports_errors
+from mocapzip.cli.choices import REPRESENTATIONS, TRANSFORMS
+from mocapzip.cli.errors import reports_errors
 
 CODEC_CHOICES = ("mcz", "hou", "hou-shared", "xz", "zstd")
 
@@ -84,8 +84,8 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
       mcz bench ../shared/data/cmu -e 1 -e 0.5 --plot rd.png
       mcz bench clips/ -r channels -r positions -c none -c single --split 0,0.5,0.5 --codec mcz
     """
-    from .. import bench as bench_module
-    from .. import progress
+    from mocapzip.bench import runner as bench_module
+    from mocapzip import progress
 
     if plot_path:  # fail before the long run, not after it
         try:

@@ -1,6 +1,6 @@
 """Names the options offer, kept here as plain strings so that `mcz --help` starts without
 importing NumPy (0.13 s instead of 0.75 s). tests/test_cli_frictions.py holds them to the
-registries they name: `mocapzip.codec.TRANSFORMS` and `mocapzip.representations.NAMES`."""
+registry (`mocapzip.stages.stage_ids("transform")` and `stage_ids("representation")`)."""
 
 TRANSFORMS = ("dct", "dwt", "identity")
 REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")

@@ -15,8 +15,8 @@ import json
 
 import click
 
-from .choices import REPRESENTATIONS
-from .errors import reports_errors
+from mocapzip.cli.choices import REPRESENTATIONS
+from mocapzip.cli.errors import reports_errors
 
 
 
@@ -42,10 +42,10 @@ class _ListOptions(click.Command):
 
 def load_poses(inputs, representation: str, asf=None) -> tuple[list, dict[str, "object"]]:
     """The clips under `inputs` in `representation`, and their classification poses by stored path."""
-    from ..clip import load_clips
-    from ..formats.errors import MocapFormatError
-    from ..inputs import find_clips
-    from ..ppca import classification_poses
+    from mocapzip.inputs.clip import load_clips
+    from mocapzip.formats.errors import MocapFormatError
+    from mocapzip.inputs.discover import find_clips
+    from mocapzip.classes.ppca import classification_poses
 
     sources = find_clips(list(inputs), asf=asf)
     if not sources:
@@ -58,12 +58,12 @@ def run_classification(labels: str, train_inputs, test_inputs, representation: s
                        threshold="auto", variance: float = 0.99, only=None, asf=None, segment: bool = False) -> dict:
     """The whole experiment (what the command prints): train on labelled clips, score test clips.
 
-    `segment` cuts each test clip at PPCA change points (`mocapzip.segment`) and scores each
+    `segment` cuts each test clip at PPCA change points (`mocapzip.classes.segment`) and scores each
     piece on its own, as `CLIP[first:end]` (frames, end excluded): one take, several classes.
     """
-    from ..classes import class_in_table, read_class_table
-    from ..formats.errors import MocapFormatError
-    from ..ppca import classify, train_models
+    from mocapzip.classes.by_name import class_in_table, read_class_table
+    from mocapzip.formats.errors import MocapFormatError
+    from mocapzip.classes.ppca import classify, train_models
 
     table = read_class_table(labels)
     train_sources, train_poses = load_poses(train_inputs, representation, asf)
@@ -81,7 +81,7 @@ def run_classification(labels: str, train_inputs, test_inputs, representation: s
     truth = {k: v for k, v in truth.items() if v is not None}
     tests = {k: v for k, v in test_poses.items() if only is None or truth.get(k) in only}
     if segment:
-        from ..segment import segment_take
+        from mocapzip.classes.segment import segment_take
 
         pieces = {}
         for key, poses in tests.items():
@@ -143,8 +143,8 @@ def classify(labels, train_inputs, test_inputs, representation, threshold, varia
       mcz classify --train ../shared/data/MANIFEST.tsv ../shared/data/cmu/35 ../shared/data/cmu/13/13_17.amc \\
                    --test ../shared/data/cmu/07 ../shared/data/cmu/09 ../shared/data/cmu/14 --only walk,run,boxing
     """
-    from .. import progress
-    from ..ppca import format_table
+    from mocapzip import progress
+    from mocapzip.classes.ppca import format_table
 
     progress.QUIET = as_json or progress.QUIET
     chosen = None if only is None else {c.strip() for c in only.split(",") if c.strip()}

@@ -10,7 +10,7 @@ import warnings
 
 import click
 
-from ..formats.errors import MocapFormatError
+from mocapzip.formats.errors import MocapFormatError
 
 
 def _fail(message: str) -> None:

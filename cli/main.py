@@ -13,11 +13,11 @@ import os
 import click
 from click.core import ParameterSource
 
-from .. import __version__
-from .bench import bench
-from .classify import classify
-from .choices import REPRESENTATIONS, TRANSFORMS
-from .errors import reports_errors
+from mocapzip import __version__
+from mocapzip.cli.bench import bench
+from mocapzip.cli.classify import classify
+from mocapzip.cli.choices import REPRESENTATIONS, TRANSFORMS
+from mocapzip.cli.errors import reports_errors
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -47,7 +47,7 @@ def inspect(paths, asf, fps, as_json):
     Per clip: frames, skeleton, degrees of freedom and duration; then totals.
     Every file is fully parsed, so `inspect` also reports damaged input.
     """
-    from ..inspect import inspect_paths
+    from mocapzip.inputs.inspect import inspect_paths
 
     report = inspect_paths(paths, asf=asf, fps=fps)
     if as_json:
@@ -158,7 +158,8 @@ def compress(inputs, output, error_cm, lossless, representation, transform, wave
     """
     if lossless:
         _refuse_lossy_options(click.get_current_context())
-    from .. import archive, progress
+    from mocapzip import archive
+    from mocapzip import progress
 
     progress.QUIET = quiet
     transform_config = {"id": transform}
@@ -206,7 +207,8 @@ def decompress(archive_path, output, patterns, force, quiet):
       mcz decompress cmu.mcz -o out/
       mcz decompress cmu.mcz -o out/ --clip '07/*'
     """
-    from .. import archive, progress
+    from mocapzip import archive
+    from mocapzip import progress
 
     progress.QUIET = quiet
     summary = archive.decompress(archive_path, output, patterns, force=force)
@@ -227,7 +229,7 @@ def info(archive_path, show_clips, as_json):
     Errors are joint-position errors in cm, measured end to end: a clip's mean (what -e
     bounds) and its max (the largest distance of any joint in any frame).
     """
-    from .. import archive
+    from mocapzip import archive
 
     report = archive.info(archive_path)
     if as_json:
@@ -284,7 +286,8 @@ def _clip_table(clips: list[dict], names: list[str]) -> None:
 @reports_errors
 def test_archive(archive_path, quiet):
     """Verify ARCHIVE without writing anything: every checksum, every clip decoded (like zstd -t)."""
-    from .. import archive, progress
+    from mocapzip import archive
+    from mocapzip import progress
 
     progress.QUIET = quiet
     with archive.Archive(archive_path) as opened:

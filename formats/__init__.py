@@ -1,5 +1,5 @@
 """File formats: Acclaim ASF (skeletons), AMC (motions) and the .mcz archive."""
 
-from .errors import MocapFormatError
+from mocapzip.formats.errors import MocapFormatError
 
 __all__ = ["MocapFormatError"]

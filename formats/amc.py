@@ -42,9 +42,9 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from ..limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
-from .errors import MocapFormatError
-from .text import (
+from mocapzip.limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import (
     MAX_ABS_VALUE,
     NUMBER,
     WHITESPACE,

@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..limits import MAX_BONES_PER_SKELETON
-from .errors import MocapFormatError
-from .text import decode_text, integer, number, read_regular_file, split_lines
+from mocapzip.limits import MAX_BONES_PER_SKELETON
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import decode_text, integer, number, read_regular_file, split_lines
 
 __all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "format_asf", "write_asf"]
 

@@ -24,9 +24,9 @@ import numpy as np
 import zstandard
 from h5py import h5d, h5t
 
-from ..limits import MAX_DECODED_STREAM_BYTES
-from .errors import MocapFormatError
-from .text import open_regular_file
+from mocapzip.limits import MAX_DECODED_STREAM_BYTES
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import open_regular_file
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
 

@@ -25,7 +25,7 @@ import stat
 
 import numpy as np
 
-from .errors import MocapFormatError
+from mocapzip.formats.errors import MocapFormatError
 
 MAX_ABS_VALUE = 1e9
 """Largest accepted magnitude of any number in an ASF or AMC file (limits may be +-inf)."""

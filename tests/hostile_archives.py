@@ -23,8 +23,8 @@ import numpy as np
 import zstandard
 
 import limited
-from mocapzip.codec import entropy
-from mocapzip.codec.coefficients import encode_matrices
+from mocapzip.codec.entropy import zstd as entropy
+from mocapzip.codec.entropy.coefficients import encode_matrices
 from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"

@@ -9,12 +9,12 @@ import json
 import numpy as np
 import pytest
 
-from mocapzip.autoclass import (ByteProxy, ClipStats, _largest_step, _Moments, _pca, _weighted_truncation, anneal,
+from mocapzip.classes.auto import (ByteProxy, ClipStats, _largest_step, _Moments, _pca, _weighted_truncation, anneal,
                                 kss_ppca, parse_auto, plan)
 from mocapzip.codec.pca import PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.ppca import PpcaModel
+from mocapzip.classes.ppca import PpcaModel
 
 
 def subspace_clips(rng, groups=3, per_group=4, dim=12, rank=2, frames=60):
@@ -120,8 +120,8 @@ def ClipStats_accumulator(rows):
 def short_clips(shared_data):
     """Three short walks (subject 07) and three runs (09), in the codec's representation."""
     from mocapzip.archive import Settings
-    from mocapzip.clip import load_clips
-    from mocapzip.inputs import find_clips
+    from mocapzip.inputs.clip import load_clips
+    from mocapzip.inputs.discover import find_clips
 
     cmu = shared_data / "cmu"
     paths = [cmu / "07" / f"07_{i:02d}.amc" for i in (1, 9, 10)] + [cmu / "09" / f"09_{i:02d}.amc" for i in (1, 2, 3)]
@@ -156,9 +156,9 @@ def decoded_errors(original_path, decoded_path):
     (independent of the codec), and the two files' frame numbers."""
     from mocapzip.formats.amc import read_amc
     from mocapzip.formats.asf import read_asf
-    from mocapzip.kinematics import forward
-    from mocapzip.metrics import frame_errors
-    from mocapzip.skeleton import SkeletonModel
+    from mocapzip.motion.kinematics import forward
+    from mocapzip.motion.metrics import frame_errors
+    from mocapzip.motion.skeleton import SkeletonModel
 
     skeleton = read_asf(original_path.parent / f"{original_path.parent.name}.asf")
     model = SkeletonModel.from_asf(skeleton)
@@ -248,9 +248,9 @@ def test_cli_auto_classes_and_segments(shared_data, tmp_path):
 
 def test_ppca_segmentation_cuts_where_the_behaviour_changes(shared_data):
     """segment.py (Barbic et al. via Hou et al. VI-B2): synthetic blocks, then run -> walk of subject 35."""
-    from mocapzip.clip import load_clips
-    from mocapzip.inputs import find_clips
-    from mocapzip.segment import segment_take
+    from mocapzip.inputs.clip import load_clips
+    from mocapzip.inputs.discover import find_clips
+    from mocapzip.classes.segment import segment_take
 
     rng = np.random.default_rng(7)
     a = rng.normal(size=(400, 2)) @ rng.normal(size=(2, 10)) + 0.01 * rng.normal(size=(400, 10))

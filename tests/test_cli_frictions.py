@@ -15,7 +15,9 @@ import h5py
 import pytest
 from click.testing import CliRunner
 
-from mocapzip import archive, progress
+from mocapzip import archive
+from mocapzip.archive import writer
+from mocapzip import progress
 from mocapzip.cli.main import main
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader
 
@@ -81,7 +83,7 @@ def test_hdf5_signature_after_a_user_block_is_still_hdf5(tmp_path):
 def test_progress_counts_frames(tmp_path, shared_data, monkeypatch):
     """The coding bar's total is the frames coded, advanced class by class (one subject: not 0/1)."""
     bars = []
-    real = archive.progress
+    real = writer.progress
 
     def recording(iterable=None, **kwargs):
         bar = real(iterable, **kwargs)
@@ -91,7 +93,7 @@ def test_progress_counts_frames(tmp_path, shared_data, monkeypatch):
             bar.update = lambda n=1: updates.append(n)
         return bar
 
-    monkeypatch.setattr(archive, "progress", recording)
+    monkeypatch.setattr(writer, "progress", recording)
     clips = [shared_data / "cmu" / "09" / "09_01.amc", shared_data / "cmu" / "09" / "09_03.amc"]
     summary = archive.compress(clips, tmp_path / "db.mcz", archive.Settings(error_cm=2.0), jobs=1)
     [(kwargs, bar)] = bars
@@ -170,18 +172,18 @@ def test_ctrl_c_during_start_up_is_one_line(tmp_path):
 def test_cli_choices_are_the_registered_stages():
     """`-t` and `-r` offer exactly what the registries build (`-t none` once died with 'unknown stage id')."""
     from mocapzip.cli import choices
-    from mocapzip.codec import TRANSFORMS, get_stage
-    from mocapzip.representations import NAMES
+    from mocapzip.stages import get_stage, stage_ids
 
-    assert choices.TRANSFORMS == TRANSFORMS and choices.REPRESENTATIONS == NAMES
-    for name in TRANSFORMS:
-        assert get_stage({"id": name}).get_config()["id"] == name
+    assert sorted(choices.TRANSFORMS) == sorted(stage_ids("transform"))
+    assert sorted(choices.REPRESENTATIONS) == sorted(stage_ids("representation"))
+    for name in choices.TRANSFORMS:
+        assert get_stage("transform", {"id": name}).get_config()["id"] == name
 
 
 @pytest.mark.parametrize("change, message", [
     ({"coefficient_coder": "zstd"}, "coefficient_coder 'zstd' is not written by format"),
-    ({"transform": {"id": "none"}}, "unknown stage id 'none'"),
-    ({"representation": "quaternions"}, "unknown representation 'quaternions'"),
+    ({"transform": {"id": "none"}}, "unknown transform id 'none'"),
+    ({"representation": "quaternions"}, "unknown representation id 'quaternions'"),
 ])
 def test_settings_an_archive_cannot_hold_are_refused_before_any_input_is_read(tmp_path, change, message):
     from dataclasses import replace

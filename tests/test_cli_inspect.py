@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from mocapzip.cli.main import main
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.inputs import find_clips
+from mocapzip.inputs.discover import find_clips
 
 
 def run(*args):

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import scipy.fft
 
-from mocapzip.archive import _serialise_clips
-from mocapzip.codec.coefficients import Priors, decode_matrices, encode_matrices
-from mocapzip.codec.entropy import decode_bytes, encode_sparse
-from mocapzip.codec.rangecoder import Decoder, Encoder, new_models
-from mocapzip.lossy import CodedClip
+from mocapzip.archive.writer import _serialise_clips
+from mocapzip.codec.entropy.coefficients import Priors, decode_matrices, encode_matrices
+from mocapzip.codec.entropy.zstd import decode_bytes, encode_sparse
+from mocapzip.codec.entropy.rangecoder import Decoder, Encoder, new_models
+from mocapzip.codec.clip_stream import CodedClip
 
 
 def quantised_dct(rng, n_frames, n_curves, step):

@@ -1,11 +1,11 @@
-"""Tests for mocapzip.codec.entropy: integer and byte coding with zstd, and corruption handling."""
+"""Tests for mocapzip.codec.entropy.zstd: integer and byte coding with zstd, and corruption handling."""
 
 import numpy as np
 import pytest
 import scipy.fft
 
-from mocapzip.codec import entropy
-from mocapzip.codec.entropy import (
+from mocapzip.codec.entropy import zstd as entropy
+from mocapzip.codec.entropy.zstd import (
     decode_bytes,
     decode_ints,
     encode_bytes,

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from mocapzip.codec import get_stage
+from mocapzip.stages import get_stage
 from mocapzip.codec.quantise import UniformQuantiser
 
 # Relative slack for float rounding exactly at bin edges.
@@ -54,17 +54,19 @@ def test_config_round_trip_through_registry():
     quantiser = UniformQuantiser(0.05, dead_zone=0.2)
     config = json.loads(json.dumps(quantiser.get_config()))
     assert config == {"id": "uniform", "step": 0.05, "dead_zone": 0.2}
-    rebuilt = get_stage(config)
+    rebuilt = get_stage("quantiser", config)
     assert isinstance(rebuilt, UniformQuantiser)
     assert (rebuilt.step, rebuilt.dead_zone) == (0.05, 0.2)
     assert UniformQuantiser.from_config(config).get_config() == config
 
 
 def test_registry_errors():
-    with pytest.raises(ValueError, match="unknown stage id"):
-        get_stage({"id": "no-such-stage"})
+    with pytest.raises(ValueError, match="unknown quantiser id"):
+        get_stage("quantiser", {"id": "no-such-stage"})
     with pytest.raises(ValueError, match="no 'id'"):
-        get_stage({"step": 1.0})
+        get_stage("quantiser", {"step": 1.0})
+    with pytest.raises(ValueError, match="bad config"):
+        get_stage("quantiser", {"id": "uniform", "stepp": 1.0})
 
 
 @pytest.mark.parametrize(

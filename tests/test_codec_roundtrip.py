@@ -20,11 +20,12 @@ from mocapzip.codec.lossless import decode_channels, encode_channels
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
 from mocapzip.formats.mcz import FORMAT_VERSION
-from mocapzip.kinematics import forward
-from mocapzip.lossy import ROOT_STEP_RATIO, CodedClip
-from mocapzip.metrics import skin_error
-from mocapzip.rotations import rotation_angle
-from mocapzip.skeleton import SkeletonModel
+from mocapzip.motion.kinematics import forward
+from mocapzip.codec.clip_stream import CodedClip
+from mocapzip.ratecontrol.encode import ROOT_STEP_RATIO
+from mocapzip.motion.metrics import skin_error
+from mocapzip.motion.rotations import rotation_angle
+from mocapzip.motion.skeleton import SkeletonModel
 
 GOLDEN = Path(__file__).parent / "golden"
 
@@ -94,7 +95,7 @@ def test_every_representation_round_trips_within_target(small_set, tmp_path, rep
 
 
 def test_root_track_step_is_a_fixed_share_of_the_pose_step(small_set, tmp_path):
-    """A root error moves every joint, so the root track is coded finer (lossy.ROOT_STEP_RATIO)."""
+    """A root error moves every joint, so the root track is coded finer (ratecontrol.encode.ROOT_STEP_RATIO)."""
     compress([small_set], tmp_path / "db.mcz", Settings(error_cm=1.0))
     with Archive(tmp_path / "db.mcz") as archive:
         for i in range(len(archive.clips)):

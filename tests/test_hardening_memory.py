@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from mocapzip.archive import Settings, compress
-from mocapzip.clip import ClipReader
+from mocapzip.inputs.clip import ClipReader
 
 # Six short real clips of two subjects: enough that "all clips at once" cannot pass for "a few".
 CLIPS = {"09": ["09_02", "09_03", "09_08"], "35": ["35_21", "35_24", "35_26"]}

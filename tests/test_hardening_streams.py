@@ -19,11 +19,14 @@ import numpy as np
 import pytest
 import zstandard
 
-from mocapzip.codec import ans, entropy
-from mocapzip.codec.coefficients import encode_matrices
-from mocapzip.codec.entropy import write_varint
+from mocapzip.codec.entropy import ans
+from mocapzip.codec.entropy import zstd as entropy
+from mocapzip.codec.entropy.coefficients import encode_matrices
+from mocapzip.codec.entropy.zstd import write_varint
 from mocapzip.codec.lossless import encode_channels
-from mocapzip.lossy import ClassBasis, CodedClip
+from mocapzip.archive import legacy
+from mocapzip.codec.basis import ClassBasis
+from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES, MAX_FRAMES_PER_CLIP
 
 CHILD = """
@@ -86,7 +89,7 @@ def test_lossless_clip_claiming_more_frames_than_its_bytes_hold(tmp_path):
 
 def test_residual_stream_refuses_shapes_beyond_the_limits(tmp_path):
     blob = ans.encode_residuals(np.arange(6).reshape(2, 3))
-    refused_in_child(tmp_path, "from mocapzip.codec.ans import decode_residuals; decode_residuals(blob, 2, 10**12)",
+    refused_in_child(tmp_path, "from mocapzip.codec.entropy.ans import decode_residuals; decode_residuals(blob, 2, 10**12)",
                      blob, "stream declares 1000000000000 residual steps")
 
 
@@ -129,7 +132,7 @@ def test_lossy_clip_claiming_ten_million_zero_frames(tmp_path):
     shapes = [(TEN_MILLION, 3), (TEN_MILLION, 4)]
     payload = struct.pack("<ff", 1.0, 0.2) + zero_matrices_claiming(shapes)
     assert len(payload) < 40
-    refused_in_child(tmp_path, f"from mocapzip.lossy import CodedClip; "
+    refused_in_child(tmp_path, f"from mocapzip.codec.clip_stream import CodedClip; "
                                f"CodedClip.from_payload(blob, 'context', {shapes})",
                      payload, f"stream declares {TEN_MILLION} matrix rows")
 
@@ -137,7 +140,7 @@ def test_lossy_clip_claiming_ten_million_zero_frames(tmp_path):
 def test_zstd_lossy_clip_claiming_ten_million_zero_frames(tmp_path):
     np.testing.assert_array_equal(entropy.decode_ints(zero_ints_claiming((5, 3))), np.zeros((5, 3)))
     payload = struct.pack("<ddB", 1.0, 0.2, 1) + with_length(zero_ints_claiming((TEN_MILLION, 3)))
-    refused_in_child(tmp_path, "from mocapzip.lossy import CodedClip; CodedClip.from_payload(blob, 'zstd')",
+    refused_in_child(tmp_path, "from mocapzip.archive.legacy import clip_v1; clip_v1(blob)",
                      payload, f"stream declares {TEN_MILLION} array values along one axis")
 
 
@@ -149,16 +152,18 @@ def test_class_basis_claiming_ten_million_pose_values(tmp_path, coder):
         body = zero_matrices_claiming([(m, 1), (m, 1), (m, q)])
     else:
         body = with_length(zero_ints_claiming((m,))) + with_length(zero_ints_claiming((m, q)))
-    refused_in_child(tmp_path, f"from mocapzip.lossy import ClassBasis; ClassBasis.decode(blob, {coder!r})",
-                     head + body, f"stream declares {m} matrix rows")
+    decoder = "from mocapzip.codec.basis import ClassBasis; ClassBasis.decode(blob)" if coder == "context" \
+        else "from mocapzip.archive.legacy import class_v1; class_v1(blob)"
+    refused_in_child(tmp_path, decoder, head + body, f"stream declares {m} matrix rows")
 
 
 @pytest.mark.parametrize("decode", [
     lambda blob: CodedClip.from_payload(blob, "context"),
-    lambda blob: CodedClip.from_payload(blob, "zstd"),
-    lambda blob: ClassBasis.decode(blob, "context"),
-    lambda blob: ClassBasis.decode(blob, "zstd"),
-], ids=["clip-context", "clip-zstd", "basis-context", "basis-zstd"])
+    legacy.clip_v1,
+    ClassBasis.decode,
+    legacy.class_v1,
+    legacy.class_v2,
+], ids=["clip-context", "clip-format-1", "basis", "basis-format-1", "basis-format-2"])
 def test_lossy_streams_cut_short_raise_value_error(decode):
     with pytest.raises(ValueError, match="cut short"):
         decode(b"\x01\x00\x00")
@@ -196,12 +201,12 @@ def two_gib_frames() -> dict[str, bytes]:
 def test_zstd_stream_unpacking_to_gigabytes(tmp_path, two_gib_frames, kind, message):
     blob = two_gib_frames[kind]
     assert len(blob) < 100_000
-    refused_in_child(tmp_path, "from mocapzip.codec.entropy import decode_bytes; decode_bytes(blob)",
+    refused_in_child(tmp_path, "from mocapzip.codec.entropy.zstd import decode_bytes; decode_bytes(blob)",
                      blob, message)
 
 
 def test_integer_stream_unpacking_past_what_its_values_need(tmp_path, two_gib_frames):
-    refused_in_child(tmp_path, "from mocapzip.codec.entropy import decode_ints; decode_ints(blob)",
+    refused_in_child(tmp_path, "from mocapzip.codec.entropy.zstd import decode_ints; decode_ints(blob)",
                      two_gib_frames["undeclared"], "unpacks to more than the limit of")
 
 

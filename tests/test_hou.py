@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mocapzip.baselines import hou
-from mocapzip.codec.entropy import decode_ints, unpack_blobs
+from mocapzip.bench.baselines import hou as hou
+from mocapzip.codec.entropy.zstd import decode_ints, unpack_blobs
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
-from mocapzip.kinematics import forward
-from mocapzip.skeleton import SkeletonModel
+from mocapzip.motion.kinematics import forward
+from mocapzip.motion.skeleton import SkeletonModel
 
 
 @pytest.fixture(scope="module")

@@ -14,8 +14,8 @@ from scipy.spatial.transform import Rotation
 from mocapzip.formats.amc import Motion, read_amc
 from mocapzip.formats.asf import parse_asf, read_asf
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.kinematics import forward, inverse
-from mocapzip.rotations import (
+from mocapzip.motion.kinematics import forward, inverse
+from mocapzip.motion.rotations import (
     angle_about,
     axis_rotation,
     euler_angles,
@@ -23,7 +23,7 @@ from mocapzip.rotations import (
     rotation_angle,
     wrap,
 )
-from mocapzip.skeleton import ChannelLayout, SkeletonModel
+from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 

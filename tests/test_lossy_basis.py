@@ -1,10 +1,14 @@
-"""The stored class basis (`lossy.ClassBasis`): exact round trips and reference rows."""
+"""The stored class basis (`codec.basis.ClassBasis`): exact round trips and reference rows, and the
+layouts of formats 1 and 2 (`archive.legacy`)."""
 
 import numpy as np
 import pytest
 
-from mocapzip.codec.coefficients import encode_matrices
-from mocapzip.lossy import MEAN_STEP_CM, ClassBasis, CodedClip, _reference_rows
+from mocapzip.codec.entropy.coefficients import encode_matrices
+from mocapzip.archive import legacy
+from mocapzip.codec.basis import MEAN_STEP_CM, ClassBasis, _reference_rows
+from mocapzip.codec.clip_stream import CodedClip
+from mocapzip.codec.entropy.zstd import encode_ints
 
 
 def related_basis(seed=0, groups=10, q=12):
@@ -19,10 +23,9 @@ def related_basis(seed=0, groups=10, q=12):
     return ClassBasis.quantised(rng.normal(size=3 * groups) * 10, components, steps)
 
 
-@pytest.mark.parametrize("coder", ["primed", "context", "zstd"])
-def test_round_trip_is_exact(coder):
+def test_round_trip_is_exact():
     basis = related_basis()
-    back = ClassBasis.decode(basis.encode(coder), coder)
+    back = ClassBasis.decode(basis.encode())
     assert np.array_equal(back.components, basis.components) and np.array_equal(back.mean, basis.mean)
     assert np.array_equal(back.steps, basis.steps)
 
@@ -44,8 +47,19 @@ def test_format_2_layout_still_decodes():
     ints = np.round(basis.components / basis.steps.astype(np.float64)).astype(np.int64)
     mean_ints = np.round(basis.mean / MEAN_STEP_CM).astype(np.int64)[:, None]
     head = basis.encode()[: 8 + 4 * basis.q]
-    back = ClassBasis.decode(head + encode_matrices([mean_ints, ints]))
-    assert np.array_equal(back.components, basis.components)
+    back = legacy.class_v2(head + encode_matrices([mean_ints[:, 0:1], ints]))
+    assert np.array_equal(back.components, basis.components) and np.array_equal(back.mean, basis.mean)
+    with pytest.raises(ValueError, match="shapes"):  # format 4 reads only its own layout
+        ClassBasis.decode(head + encode_matrices([mean_ints, ints]))
+
+
+def test_format_1_layout_still_decodes():
+    basis = related_basis(4)
+    mean_ints, ints = basis.integers()
+    blobs = [encode_ints(mean_ints), encode_ints(ints)]
+    head = basis.encode()[: 8 + 4 * basis.q]
+    back = legacy.class_v1(head + b"".join(len(b).to_bytes(4, "little") + b for b in blobs))
+    assert np.array_equal(back.components, basis.components) and np.array_equal(back.mean, basis.mean)
 
 
 def test_reference_to_a_later_row_is_refused():
@@ -76,3 +90,13 @@ def test_unknown_coder_is_refused_not_taken_for_zstd():
     for call in (lambda: coded.payload("auto"), lambda: CodedClip.from_payload(coded.payload(), "auto")):
         with pytest.raises(ValueError, match="unknown coefficient coder"):
             call()
+
+
+def test_format_1_coder_is_read_never_written():
+    coded = CodedClip(1.0, np.zeros((3, 2), np.int64), 1.0, None)
+    with pytest.raises(ValueError, match="read only"):
+        coded.payload("zstd")
+    blob = (1.0).hex() and b"\x00" * 16 + bytes([1]) + len(encode_ints(coded.pose_ints)).to_bytes(4, "little") \
+        + encode_ints(coded.pose_ints)
+    back = legacy.clip_v1(blob, [(3, 2), (3, 4)])
+    assert np.array_equal(back.pose_ints, coded.pose_ints) and back.root_ints is None

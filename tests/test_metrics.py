@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from mocapzip.formats.asf import parse_asf
-from mocapzip.kinematics import Pose, forward
-from mocapzip.metrics import (
+from mocapzip.motion.kinematics import Pose, forward
+from mocapzip.motion.metrics import (
     SKIN_RADIUS,
     bytes_per_frame,
     frame_errors,
@@ -17,8 +17,8 @@ from mocapzip.metrics import (
     skin_error,
     skin_vertices,
 )
-from mocapzip.rotations import axis_rotation
-from mocapzip.skeleton import ChannelLayout, SkeletonModel
+from mocapzip.motion.rotations import axis_rotation
+from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 
 # One 10 cm bone along x (1 file unit = 1 cm), twisting about itself.
 ONE_BONE_ASF = b"""\

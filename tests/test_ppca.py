@@ -10,8 +10,8 @@ from click.testing import CliRunner
 from scipy.stats import multivariate_normal
 
 from mocapzip.cli.classify import classify as classify_command
-from mocapzip.classes import class_in_table, read_class_table
-from mocapzip.ppca import (PpcaModel, classify, components_for_share, format_table, thesis_threshold,
+from mocapzip.classes.by_name import class_in_table, read_class_table
+from mocapzip.classes.ppca import (PpcaModel, classify, components_for_share, format_table, thesis_threshold,
                            train_models)
 
 
@@ -103,9 +103,9 @@ def test_thesis_threshold_makes_the_table_sum_to_columns_times_100():
 @pytest.fixture(scope="module")
 def walk_run(shared_data):
     """Short real clips: walks of subject 07, runs of 09 (training), walks and runs of 35 (test)."""
-    from mocapzip.clip import load_clips
-    from mocapzip.inputs import find_clips
-    from mocapzip.ppca import classification_poses
+    from mocapzip.inputs.clip import load_clips
+    from mocapzip.inputs.discover import find_clips
+    from mocapzip.classes.ppca import classification_poses
 
     cmu = shared_data / "cmu"
     files = {"train": [cmu / "07" / "07_01.amc", cmu / "07" / "07_02.amc", cmu / "09" / "09_01.amc", cmu / "09" / "09_02.amc"],
@@ -135,7 +135,7 @@ def test_classifier_separates_walk_and_run_of_another_subject(walk_run):
 
 
 def test_label_lookup_prefers_the_longest_matching_path(shared_data):
-    from mocapzip.inputs import find_clips
+    from mocapzip.inputs.discover import find_clips
 
     table = {"07_01.amc": "other", "cmu/07/07_01.amc": "walk"}
     (source,) = find_clips([shared_data / "cmu" / "07" / "07_01.amc"])

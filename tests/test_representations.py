@@ -13,13 +13,14 @@ from scipy.spatial.transform import Rotation
 
 from mocapzip.formats.amc import Motion, read_amc
 from mocapzip.formats.asf import read_asf
-from mocapzip.kinematics import forward
-from mocapzip.representations import NAMES, get_representation
+from mocapzip.motion.kinematics import forward
+from mocapzip.representations import get_representation
+from mocapzip.stages import stage_ids
 from mocapzip.representations.aligned import heading, position_columns
 from mocapzip.representations.positions import decode_markers, flip_ranges, flips_from_ranges, solved_bones, true_twists
 from mocapzip.representations.universal import UNIVERSAL_HEIGHT_CM, UNIVERSAL_LENGTHS_CM, skeleton_height
-from mocapzip.rotations import axis_rotation, euler_angles, rotation_angle
-from mocapzip.skeleton import SkeletonModel
+from mocapzip.motion.rotations import axis_rotation, euler_angles, rotation_angle
+from mocapzip.motion.skeleton import SkeletonModel
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -61,7 +62,7 @@ def round_trip_errors(name: str, model: SkeletonModel, motion: Motion,
 
 
 @pytest.mark.parametrize("axes_from_positions", [False, True])
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", stage_ids("representation"))
 @pytest.mark.parametrize("key", sorted(CLIPS))
 def test_round_trip_is_exact(key, name, axes_from_positions):
     position, rotation = round_trip_errors(name, *load(key), axes_from_positions)
@@ -75,7 +76,7 @@ def test_solved_bones_of_cmu_are_those_without_twist():
     limbs = {"hipjoint", "tibia", "foot", "toes", "clavicle", "radius", "hand", "fingers", "thumb"}
     assert solved == {side + limb for side in "lr" for limb in limbs} - {"lhipjoint"}  # lhipjoint: root proxy
     assert "lwrist" not in solved  # its one dof (ry) turns the forearm about itself
-    widths = {name: get_representation(name, True).forward(model, motion).poses.shape[1] for name in NAMES}
+    widths = {name: get_representation(name, True).forward(model, motion).poses.shape[1] for name in stage_ids("representation")}
     assert widths == {"channels": 62, "positions": 183 - 51, "aligned": 180 - 51, "scaled": 129, "normalised": 129}
 
 
@@ -118,15 +119,15 @@ def test_flip_ranges_round_trip():
 
 
 def test_registry():
-    assert NAMES == ("channels", "positions", "aligned", "scaled", "normalised")
-    assert all(get_representation(name).name == name for name in NAMES)
-    with pytest.raises(KeyError, match="choose one of"):
+    assert stage_ids("representation") == ("channels", "positions", "aligned", "scaled", "normalised")
+    assert all(get_representation(name).name == name for name in stage_ids("representation"))
+    with pytest.raises(ValueError, match="unknown representation id 'quaternions'"):
         get_representation("quaternions")
 
 
 def test_cmu_widths_match_the_thesis():
     model, motion = load("cmu-walk")
-    widths = {name: get_representation(name).forward(model, motion).poses.shape[1] for name in NAMES}
+    widths = {name: get_representation(name).forward(model, motion).poses.shape[1] for name in stage_ids("representation")}
     # 62 channels; 31 positions + 30 axes; aligned drops the root position (always 0).
     assert widths == {"channels": 62, "positions": 183, "aligned": 180, "scaled": 180, "normalised": 180}
     assert get_representation("positions").forward(model, motion).root is None

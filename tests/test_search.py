@@ -2,7 +2,7 @@
 
 import pytest
 
-from mocapzip.search import largest_step, smallest_count
+from mocapzip.ratecontrol.search import largest_step, smallest_count
 
 
 @pytest.mark.parametrize("target", [0.05, 0.3, 1.0, 7.0])

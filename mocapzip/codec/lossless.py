@@ -59,10 +59,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapzip.codec import ans, entropy
+from mocapzip.codec.entropy import ans
+from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
+from mocapzip.stages import Stage, register
 
-__all__ = ["encode_channels", "decode_channels"]
+__all__ = ["DecimalChannelCoder", "encode_channels", "decode_channels"]
+
+
+@register
+class DecimalChannelCoder(Stage):
+    """The lossless coder: AMC channel values back bit for bit (`--lossless`; the module doc says how)."""
+
+    kind = "lossless coder"
+    codec_id = "decimal"
+
+    def encode(self, values) -> bytes:
+        return encode_channels(values)
+
+    def decode(self, blob: bytes) -> np.ndarray:
+        return decode_channels(blob)
 
 _FORMAT_VERSION = 2
 _KNOWN_VERSIONS = (1, 2)

@@ -8,13 +8,16 @@ almost nothing.
 
 import numpy as np
 
+from mocapzip.stages import Stage, register
+
 __all__ = ["UniformQuantiser"]
 
 # |x| / step must stay below this so the integer (and later zigzag codes) fit int64.
 _MAX_LEVEL = 2.0**62
 
 
-class UniformQuantiser:
+@register
+class UniformQuantiser(Stage):
     """q = sign(x) * max(floor(|x| / step + 0.5 - dead_zone), 0); x is restored as q * step.
 
     With dead_zone == 0 this is rounding to the nearest multiple of step, so
@@ -26,9 +29,10 @@ class UniformQuantiser:
     coefficients that are denser near zero.
     """
 
+    kind = "quantiser"
     codec_id = "uniform"
 
-    def __init__(self, step: float, dead_zone: float = 0.0):
+    def __init__(self, step: float = 1.0, dead_zone: float = 0.0):
         if not (np.isfinite(step) and step > 0):
             raise ValueError(f"step must be a positive finite number, got {step}")
         if not 0.0 <= dead_zone < 0.5:
@@ -46,14 +50,6 @@ class UniformQuantiser:
     def dequantise(self, q) -> np.ndarray:
         return np.asarray(q, np.int64) * self.step
 
-    def get_config(self) -> dict:
-        return {"id": self.codec_id, "step": self.step, "dead_zone": self.dead_zone}
-
-    @classmethod
-    def from_config(cls, config: dict) -> "UniformQuantiser":
-        """Rebuild from `get_config()` output (the "id" entry is optional)."""
-        return cls(**{key: value for key, value in config.items() if key != "id"})
-
-    def __repr__(self) -> str:
-        return f"UniformQuantiser(step={self.step!r}, dead_zone={self.dead_zone!r})"
+    def params(self) -> dict:
+        return {"step": self.step, "dead_zone": self.dead_zone}
 

@@ -18,12 +18,16 @@ import numpy as np
 import pywt
 import scipy.fft
 
+from mocapzip.stages import Stage, register
+
 __all__ = ["DctTransform", "DwtTransform", "IdentityTransform"]
 
 
-class DctTransform:
+@register
+class DctTransform(Stage):
     """Orthonormal DCT-II per column (scipy.fft, norm="ortho")."""
 
+    kind = "transform"
     codec_id = "dct"
     orthonormal = True
 
@@ -34,19 +38,10 @@ class DctTransform:
         coefs = _check_length(coefs, n_frames)
         return scipy.fft.idct(coefs, type=2, norm="ortho", axis=0)
 
-    def get_config(self) -> dict:
-        return {"id": self.codec_id}
-
-    @classmethod
-    def from_config(cls, config: dict) -> "DctTransform":
-        """Rebuild from `get_config()` output (the "id" entry is optional)."""
-        return cls(**{key: value for key, value in config.items() if key != "id"})
-
-    def __repr__(self) -> str:
-        return "DctTransform()"
 
 
-class DwtTransform:
+@register
+class DwtTransform(Stage):
     """Multilevel discrete wavelet transform per column, exactly T coefficients for any T.
 
     Why not plain ``pywt.wavedec``: measured with db4, every extension mode
@@ -63,7 +58,10 @@ class DwtTransform:
     level stops early once the approximation has fewer than 2 samples.
     """
 
+    kind = "transform"
     codec_id = "dwt"
+    param_schema = {"wavelet": {"type": "string"},  # JSON Schema of `params()`, for archive meta
+                    "level": {"anyOf": [{"type": "integer", "minimum": 0, "maximum": 32}, {"type": "null"}]}}
 
     def __init__(self, wavelet: str = "db4", level=None):
         self.wavelet = pywt.Wavelet(wavelet)
@@ -106,21 +104,15 @@ class DwtTransform:
         even_part = pywt.idwt(approximation, details, self.wavelet, mode="periodization", axis=0)
         return np.concatenate([even_part, odd_sample], axis=0)
 
-    def get_config(self) -> dict:
-        return {"id": self.codec_id, "wavelet": self.wavelet.name, "level": self.level}
-
-    @classmethod
-    def from_config(cls, config: dict) -> "DwtTransform":
-        """Rebuild from `get_config()` output (the "id" entry is optional)."""
-        return cls(**{key: value for key, value in config.items() if key != "id"})
-
-    def __repr__(self) -> str:
-        return f"DwtTransform(wavelet={self.wavelet.name!r}, level={self.level!r})"
+    def params(self) -> dict:
+        return {"wavelet": self.wavelet.name, "level": self.level}
 
 
-class IdentityTransform:
+@register
+class IdentityTransform(Stage):
     """No transform: coefficients are the curves (baseline, and for noise-like channels)."""
 
+    kind = "transform"
     codec_id = "identity"
     orthonormal = True
 
@@ -130,16 +122,6 @@ class IdentityTransform:
     def inverse(self, coefs, n_frames: int) -> np.ndarray:
         return _check_length(coefs, n_frames).copy()
 
-    def get_config(self) -> dict:
-        return {"id": self.codec_id}
-
-    @classmethod
-    def from_config(cls, config: dict) -> "IdentityTransform":
-        """Rebuild from `get_config()` output (the "id" entry is optional)."""
-        return cls(**{key: value for key, value in config.items() if key != "id"})
-
-    def __repr__(self) -> str:
-        return "IdentityTransform()"
 
 
 def _check_length(coefs, n_frames: int) -> np.ndarray:

@@ -24,11 +24,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import Pose, forward, inverse
-from ..rotations import angle_about, axis_rotation
-from ..skeleton import SkeletonModel
-from .base import Encoded
-from .positions import decode_markers, encode_markers
+from mocapzip.motion.kinematics import Pose, forward, inverse
+from mocapzip.motion.rotations import angle_about, axis_rotation
+from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.representations.base import Encoded, Representation
+from mocapzip.stages import register
+from mocapzip.representations.positions import decode_markers, encode_markers
 
 MIN_HEADING_CONFIDENCE = 0.25
 
@@ -55,11 +56,9 @@ def position_columns(model: SkeletonModel) -> int:
     return 3 * (model.n_joints - 1)
 
 
-class Aligned:
-    name = "aligned"
-
-    def __init__(self, axes_from_positions: bool = False):
-        self.axes_from_positions = axes_from_positions  # see positions.solved_bones
+@register
+class Aligned(Representation):
+    codec_id = "aligned"
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         pose = forward(model, motion.values, motion)

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 
-from ..skeleton import SkeletonModel
+from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.stages import Stage
 
 
 @dataclass
@@ -26,11 +26,26 @@ class Encoded:
     params: dict[str, float | np.ndarray] = field(default_factory=dict)
 
 
-class Representation(Protocol):
-    name: str
+class Representation(Stage):
+    """A stage of kind "representation"; its one parameter, `axes_from_positions`, leaves out the
+    axes of bones whose rotation follows from joint positions (`positions.solved_bones`)."""
+
+    kind = "representation"
+
+    def __init__(self, axes_from_positions: bool = False):
+        self.axes_from_positions = bool(axes_from_positions)
+
+    @property
+    def name(self) -> str:
+        return self.codec_id
+
+    def params(self) -> dict:
+        return {"axes_from_positions": self.axes_from_positions}
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         """A Motion (AMC clip of `model`'s skeleton) -> Encoded."""
+        raise NotImplementedError
 
     def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
         """Encoded -> channel values (F, C) in `layout` (a Motion or ChannelLayout)."""
+        raise NotImplementedError

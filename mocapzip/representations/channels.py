@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..skeleton import SkeletonModel
-from .base import Encoded
+from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.representations.base import Encoded, Representation
+from mocapzip.stages import register
 
 
-class Channels:
-    name = "channels"
-
-    def __init__(self, axes_from_positions: bool = False):
-        """`axes_from_positions` is accepted like the other representations' and means nothing here."""
+@register
+class Channels(Representation):
+    codec_id = "channels"
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         model.layout(motion)  # checks the clip against the skeleton, like the other representations

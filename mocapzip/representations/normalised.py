@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..skeleton import SkeletonModel
-from .aligned import Aligned, position_columns
-from .base import Encoded
-from .universal import universal_lengths
+from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.representations.aligned import Aligned, position_columns
+from mocapzip.representations.base import Encoded, Representation
+from mocapzip.stages import register
+from mocapzip.representations.universal import universal_lengths
 
 
 def rescale_bones(model: SkeletonModel, poses: np.ndarray, factors: np.ndarray) -> np.ndarray:
@@ -29,10 +30,12 @@ def rescale_bones(model: SkeletonModel, poses: np.ndarray, factors: np.ndarray) 
     return out
 
 
-class Normalised:
-    name = "normalised"
+@register
+class Normalised(Representation):
+    codec_id = "normalised"
 
     def __init__(self, axes_from_positions: bool = False):
+        super().__init__(axes_from_positions)
         self.aligned = Aligned(axes_from_positions)
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:

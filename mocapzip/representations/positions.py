@@ -35,10 +35,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kinematics import Pose, forward, inverse
-from ..rotations import AXIS_INDEX, axis_rotation, euler_matrix, orthonormal_frame, wrap
-from ..skeleton import SkeletonModel
-from .base import Encoded
+from mocapzip.motion.kinematics import Pose, forward, inverse
+from mocapzip.motion.rotations import AXIS_INDEX, axis_rotation, euler_matrix, orthonormal_frame, wrap
+from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.representations.base import Encoded, Representation
+from mocapzip.stages import register
 
 # A dof axis closer to the bone than this cosine (60 degrees) mostly twists the bone
 # about itself, which its direction cannot show: such a bone keeps its stored axis.
@@ -235,11 +236,9 @@ def decode_markers(model: SkeletonModel, poses: np.ndarray, with_root: bool, axe
     return Pose(rotations, positions)
 
 
-class Positions:
-    name = "positions"
-
-    def __init__(self, axes_from_positions: bool = False):
-        self.axes_from_positions = axes_from_positions
+@register
+class Positions(Representation):
+    codec_id = "positions"
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         pose = forward(model, motion.values, motion)

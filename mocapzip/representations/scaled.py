@@ -8,16 +8,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..skeleton import SkeletonModel
-from .aligned import Aligned, position_columns
-from .base import Encoded
-from .universal import UNIVERSAL_HEIGHT_CM, skeleton_height
+from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.representations.aligned import Aligned, position_columns
+from mocapzip.representations.base import Encoded, Representation
+from mocapzip.stages import register
+from mocapzip.representations.universal import UNIVERSAL_HEIGHT_CM, skeleton_height
 
 
-class Scaled:
-    name = "scaled"
+@register
+class Scaled(Representation):
+    codec_id = "scaled"
 
     def __init__(self, axes_from_positions: bool = False):
+        super().__init__(axes_from_positions)
         self.aligned = Aligned(axes_from_positions)
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..skeleton import SkeletonModel
+from mocapzip.motion.skeleton import SkeletonModel
 
 UNIVERSAL_LENGTHS_CM = {
     "lhipjoint": 15.1375,

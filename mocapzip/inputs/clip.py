@@ -14,16 +14,17 @@ from functools import cached_property
 
 import numpy as np
 
-from .formats.amc import AmcStyle, Motion, read_amc
-from .formats.asf import read_asf
-from .inputs import ClipSource
-from .kinematics import forward
-from .metrics import joint_distances
-from .progress import progress
-from .representations import get_representation
-from .representations.base import Encoded
-from .representations.positions import flip_ranges, true_twists
-from .skeleton import ChannelLayout, SkeletonModel
+from mocapzip.formats.amc import AmcStyle, Motion, read_amc
+from mocapzip.formats.asf import read_asf
+from mocapzip.inputs.discover import ClipSource
+from mocapzip.motion.kinematics import forward
+from mocapzip.motion.metrics import joint_distances
+from mocapzip.progress import progress
+from mocapzip.representations import get_representation
+from mocapzip.representations.base import Encoded
+from mocapzip.representations.weighted import channels_from_weighted, pose_weights
+from mocapzip.representations.positions import flip_ranges, true_twists
+from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 
 
 @dataclass
@@ -36,6 +37,10 @@ class LoadedClip:
     positions: np.ndarray | None  # (F, J, 3) cm, original joint positions (lossy mode)
     axis_weight_cm: float = 1.0
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
+
+    @property
+    def representation(self):
+        return get_representation(self.representation_name, self.axes_from_positions)
 
     @cached_property
     def weights(self) -> np.ndarray:
@@ -82,8 +87,8 @@ class LoadedClip:
         """((mean, max) error, the TwistChoice made) of decoded weighted `poses` for the original
         `frames`, twists chosen towards the original's (None without solved bones)."""
         twist = true_twists(self.model, self.motion.values[frames], self.layout) if self.axes_from_positions else None
-        values = channels_from(self.model, self.representation_name, self.layout, poses / self.weights, root,
-                               {**self.encoded.params, "twist": twist}, self.axes_from_positions)
+        values = channels_from_weighted(self.model, self.representation, self.layout, poses, root,
+                                        {**self.encoded.params, "twist": twist}, self.axis_weight_cm)
         if final:
             values = round_as_written(values, self.motion.style)
         decoded = forward(self.model, values, self.layout).positions
@@ -101,35 +106,6 @@ def round_as_written(values: np.ndarray, style: AmcStyle) -> np.ndarray:
     exponent = np.where(np.isfinite(exponent), exponent, 0)
     scale = 10.0 ** (digits - 1 - exponent)
     return np.round(values * scale) / scale
-
-
-def pose_weights(model: SkeletonModel, representation_name: str, width: int, axis_weight_cm: float) -> np.ndarray:
-    """Per-column weights of a pose: joint positions (cm) count 1, bone axis vectors (unit
-    vectors) count `axis_weight_cm`, the distance at which an axis error becomes a position
-    error. PCA and the uniform quantiser then spend bits where they move joints.
-    Channels (angles) are left unweighted.
-    """
-    weights = np.ones(width)
-    if representation_name != "channels":
-        n_positions = 3 * model.n_joints if representation_name == "positions" else 3 * (model.n_joints - 1)
-        weights[n_positions:] = axis_weight_cm
-    return weights
-
-
-def channels_from(model: SkeletonModel, representation_name: str, layout: ChannelLayout,
-                  poses: np.ndarray, root: np.ndarray | None, params: dict,
-                  axes_from_positions: bool = False) -> np.ndarray:
-    """Decoded representation -> AMC channel values in `layout`."""
-    representation = get_representation(representation_name, axes_from_positions)
-    return representation.inverse(model, Encoded(poses, root, params), layout)
-
-
-def skeleton_params(model: SkeletonModel, representation_name: str, layout: ChannelLayout) -> dict:
-    """The representation's per-clip parameters; they depend on the skeleton only, so the
-    decoder re-derives them (from a one-frame rest pose) instead of storing them."""
-    rest = Motion(list(layout.bones), list(layout.counts), np.zeros((1, layout.width)), np.array([1]),
-                  [":RADIANS" if layout.angle_unit == "rad" else ":DEGREES"])
-    return get_representation(representation_name).forward(model, rest).params
 
 
 def load_clips(sources: list[ClipSource], representation_name: str | None,

@@ -20,7 +20,7 @@ codec's poses), so no frame is touched while iterating:
 Which partition wins, and which K when none is given, is decided by bytes. The estimate
 (`ByteProxy`) runs the lossy codec in pose space: per class the PCA basis, for each PCA
 share of the budget the fewest components keeping every member within it (the class
-keeps the maximum, as `lossy.encode_class` does), the stored basis size (the real
+keeps the maximum, as `ratecontrol.encode.encode_class` does), the stored basis size (the real
 `ClassBasis.encode`), and per clip the largest quantiser step meeting the budget and the
 size of its coefficients in the entropy coder's layouts (zstd at a faster level). Only
 the end-to-end error is modelled rather than measured: per clip, a joint-sensitivity
@@ -37,14 +37,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .codec import get_stage
-from .codec.entropy import encode_sparse
-from .codec.pca import CovarianceAccumulator, PcaBasis
-from .codec.quantise import UniformQuantiser
-from .formats.errors import MocapFormatError
-from .ppca import DEFAULT_VARIANCE_SHARE, PpcaModel
+from mocapzip.stages import get_stage
+from mocapzip.codec.basis import ClassBasis
+from mocapzip.codec.entropy.zstd import encode_ints, estimated_size
+from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
+from mocapzip.codec.quantise import UniformQuantiser
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.classes.ppca import DEFAULT_VARIANCE_SHARE, PpcaModel
 
-PCA_SHARES = (0.3, 0.5, 0.7)  # as lossy.PCA_SHARES
+PCA_SHARES = (0.3, 0.5, 0.7)  # as ratecontrol.encode.PCA_SHARES
 SEARCH_STRIDE = 4  # calibration scores every 4th frame at most (MAX_CALIBRATION_FRAMES caps the count)
 CALIBRATION_Q = (8, 16, 24, 32, 48, 64, 96)  # truncations scored per clip
 MAX_CALIBRATION_FRAMES = 80  # frames scored per clip when calibrating (every 4th, or sparser)
@@ -331,7 +332,7 @@ class ByteProxy:
 
     def _class_bytes(self, members: tuple[int, ...]) -> int:
         settings = self.settings
-        transform = get_stage(settings.transform)
+        transform = get_stage("transform", settings.transform)
         pca = _pca([self.stats[i] for i in members])
         v = pca.components
         m = len(pca.mean)
@@ -365,18 +366,18 @@ _SHARED: dict = {}  # what forked calibration workers read
 
 
 def _parallel(function, items, jobs: int) -> list:
-    from .lossy import _parallel as parallel
+    from mocapzip.ratecontrol.encode import _parallel as parallel
 
     return parallel(function, items, jobs)
 
 
 def _basis_bytes(pca: PcaBasis, q: int, settings) -> int:
-    """The size of a class basis of q components, built as `lossy.encode_class` builds it, in
-    zstd layouts like the clip estimates (fast; the archive's range coder is about 7 % smaller)."""
-    from .lossy import ClassBasis
-
+    """The size of a class basis of q components, built as `ratecontrol.encode.encode_class` builds
+    it, its integers in zstd layouts like the clip estimates (fast; the archive's range coder is
+    about 7 % smaller): header, steps, and two length-prefixed ints blobs."""
     steps = ClassBasis.steps_for(pca.variances[:q], settings.error_cm, settings.basis_precision)
-    return len(ClassBasis.quantised(pca.mean, pca.components[:, :q], steps).encode("zstd"))
+    mean_ints, ints = ClassBasis.quantised(pca.mean, pca.components[:, :q], steps).integers()
+    return 8 + 4 * q + 8 + len(encode_ints(mean_ints)) + len(encode_ints(ints))
 
 
 def _shares(settings) -> tuple[float, ...]:
@@ -399,12 +400,6 @@ def _weighted_truncation(stat: ClipStats, mean: np.ndarray, v: np.ndarray, gram:
     return np.maximum(np.concatenate([np.diag(suffix), [0.0]]) / stat.count, 0.0)
 
 
-def _pose_scale(clip):
-    """What `clip.poses` is multiplied by relative to the representation's own poses (the codec
-    may weight columns, e.g. bone axes; `LoadedClip.weights`), 1 when it does not."""
-    return getattr(clip, "weights", 1.0)
-
-
 def _column_weights(clip, frames: int = 4, delta: float = 1e-3) -> np.ndarray:
     """Mean squared joint displacement (over joints, cm^2) per unit squared change of each pose column.
 
@@ -412,8 +407,8 @@ def _column_weights(clip, frames: int = 4, delta: float = 1e-3) -> np.ndarray:
     like `mcz decompress` (representation inverse, forward kinematics), and compared with the
     undisturbed decode. One batch: (M + 1) x frames poses.
     """
-    from .clip import channels_from
-    from .kinematics import forward
+    from mocapzip.motion.kinematics import forward
+    from mocapzip.representations.weighted import channels_from_weighted
 
     m = clip.poses.shape[1]
     if clip.positions is None:
@@ -421,10 +416,9 @@ def _column_weights(clip, frames: int = 4, delta: float = 1e-3) -> np.ndarray:
     index = np.unique(np.linspace(0, len(clip.poses) - 1, frames).astype(int))
     batch = np.repeat(clip.poses[index][:, None, :], m + 1, axis=1)
     batch[:, 1:, :] += np.eye(m) * delta
-    batch = batch.reshape(-1, m) / _pose_scale(clip)
     root = None if clip.root is None else np.repeat(clip.root[index], m + 1, axis=0)
-    values = channels_from(clip.model, clip.representation_name, clip.layout, batch, root, clip.encoded.params,
-                           clip.axes_from_positions)
+    values = channels_from_weighted(clip.model, clip.representation, clip.layout, batch.reshape(-1, m), root,
+                                    clip.encoded.params, clip.axis_weight_cm)
     positions = forward(clip.model, values, clip.layout).positions.reshape(len(index), m + 1, -1, 3)
     moved = positions[:, 1:] - positions[:, :1]
     return np.maximum((moved**2).sum(axis=-1).mean(axis=-1).mean(axis=0) / delta**2, 0.0)
@@ -439,8 +433,9 @@ def _calibrate_clip(index: int):
     step a fixed share of the pose step as in the codec) finds the step meeting the whole budget, and gamma
     follows from the combination rule (see ByteProxy).
     """
-    from .lossy import ROOT_STEP_RATIO, scale_root, unscale_root
-    from .search import largest_step
+    from mocapzip.codec.clip_stream import scale_root, unscale_root
+    from mocapzip.ratecontrol.encode import ROOT_STEP_RATIO
+    from mocapzip.ratecontrol.search import largest_step
 
     clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
     weights = _column_weights(clip)
@@ -482,7 +477,7 @@ def _calibrate_clip(index: int):
     middle = np.log(targets[len(targets) // 2])
     q0 = int(round(np.exp(np.interp(middle, lj, np.log(qs)[::-1])))) if middle >= lj[0] else qs[-1]
     q0 = min(max(q0, 1), m)
-    transform = get_stage(settings.transform)
+    transform = get_stage("transform", settings.transform)
     truncated = pca.mean + coef[:, :q0] @ pca.components[:, :q0].T
     t0 = joint_error(truncated, root)
     curves = transform.forward(coef_all[:, :q0])
@@ -512,29 +507,13 @@ def _calibrate_clip(index: int):
     return shares, weights, (lp, lj), gamma
 
 
-try:  # the codec's own layouts, compressed at a faster zstd level: a close, quick size estimate
-    import zstandard
-
-    from .codec.entropy import _as_int_array, _planes, split_leading_bits, _to_codes
-
-    _ESTIMATOR = zstandard.ZstdCompressor(level=9)
-
-    def _coded_size(ints: np.ndarray) -> int:
-        codes = _to_codes(_as_int_array(ints).ravel(order="C"))
-        lengths, verbatim = split_leading_bits(codes)
-        return 8 + min(len(_ESTIMATOR.compress(_planes(codes))), len(_ESTIMATOR.compress(lengths.tobytes())) + len(verbatim))
-except ImportError:  # the entropy module changed: use it as it is (slower, exact)
-    def _coded_size(ints: np.ndarray) -> int:
-        return len(encode_sparse(ints))
-
-
 def _clip_bytes(curves: np.ndarray, gains: np.ndarray, allowed: float, dead_zone: float) -> int:
     """Bytes of a clip's quantised curves at the largest step keeping their weighted quantisation
     error within `allowed` (mean squared per frame; curve k's error counts gains[k] times)."""
     if curves.size == 0:
         return CLIP_OVERHEAD_BYTES
     step = _largest_step(curves, gains, allowed * len(curves), dead_zone)
-    return _coded_size(UniformQuantiser(step, dead_zone).quantise(curves)) + CLIP_OVERHEAD_BYTES
+    return estimated_size(UniformQuantiser(step, dead_zone).quantise(curves)) + CLIP_OVERHEAD_BYTES
 
 
 def _largest_step(curves: np.ndarray, gains: np.ndarray, budget: float, dead_zone: float) -> float:

@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .rotations import euler_angles, rotate_rows_inplace
-from .skeleton import SkeletonModel
+from mocapzip.motion.rotations import euler_angles, rotate_rows_inplace
+from mocapzip.motion.skeleton import SkeletonModel
 
 
 class Pose(NamedTuple):

@@ -38,11 +38,13 @@ CMU set.
 
 import numpy as np
 
-from mocapzip.codec.entropy import ByteReader, check_size, write_varint
-from mocapzip.codec.rangecoder import Decoder, Encoder, new_models
+from mocapzip.codec.entropy.zstd import ByteReader, check_size, write_varint
+from mocapzip.codec.entropy.rangecoder import Decoder, Encoder, new_models
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_FRAME
+from mocapzip.stages import Stage, register
 
-__all__ = ["encode_matrices", "decode_matrices", "matrix_shapes", "check_matrix_shape", "Priors"]
+__all__ = ["ContextCoder", "PrimedCoder", "encode_matrices", "decode_matrices", "matrix_shapes",
+           "check_matrix_shape", "Priors"]
 
 _VERSION = 1  # models start at 1/2
 _PRIMED_VERSION = 2  # models start from the archive's priors
@@ -131,6 +133,45 @@ class Priors:
         return _Models.from_state(self.states[slot])
 
 
+@register
+class ContextCoder(Stage):
+    """Coefficient coder "context": matrices streams of version 1, models starting at 1/2 (format 2 on)."""
+
+    kind = "coefficient coder"
+    codec_id = "context"
+    needs_priors = False
+
+    def encode(self, matrices, priors: "Priors | None" = None) -> bytes:
+        return encode_matrices(matrices)
+
+    def decode(self, blob: bytes, shapes=None, priors: "Priors | None" = None) -> list[np.ndarray]:
+        if matrix_stream_version(blob) != _VERSION:
+            raise ValueError("coefficient stream is not of coder 'context' (version 1)")
+        return decode_matrices(blob, shapes)
+
+
+@register
+class PrimedCoder(Stage):
+    """Coefficient coder "primed": version-2 streams whose models start from the archive's
+    `priors` stream (format 3 on). Class bases are too few to train on: they stay "context"."""
+
+    kind = "coefficient coder"
+    codec_id = "primed"
+    needs_priors = True
+
+    def encode(self, matrices, priors: "Priors | None" = None) -> bytes:
+        if priors is None:
+            raise ValueError("coefficient coder 'primed' needs the archive's priors")
+        return encode_matrices(matrices, priors)
+
+    def decode(self, blob: bytes, shapes=None, priors: "Priors | None" = None) -> list[np.ndarray]:
+        if priors is None:
+            raise ValueError("coefficient coder 'primed' needs the archive's priors")
+        if matrix_stream_version(blob) != _PRIMED_VERSION:
+            raise ValueError("coefficient stream is not of coder 'primed' (version 2)")
+        return decode_matrices(blob, shapes, priors)
+
+
 def encode_matrices(matrices, priors: Priors | None = None) -> bytes:
     """Code 2-D int64 matrices (rows x columns) into one stream, shapes included.
 
@@ -169,6 +210,11 @@ def decode_matrices(blob: bytes, shapes=None, priors: Priors | None = None) -> l
                 for slot, (rows, columns) in enumerate(stored)]
     decoder.finish()
     return matrices
+
+
+def matrix_stream_version(blob: bytes) -> int:
+    """A matrices stream's version byte (1: models start at 1/2, 2: from priors), checked."""
+    return _read_header(ByteReader(bytes(blob)))[0]
 
 
 def matrix_shapes(blob: bytes) -> list[tuple[int, int]]:

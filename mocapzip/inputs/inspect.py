@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import os
 
-from .formats.amc import read_amc
-from .formats.asf import read_asf
-from .formats.errors import MocapFormatError
-from .inputs import find_clips
-from .progress import progress
+from mocapzip.formats.amc import read_amc
+from mocapzip.formats.asf import read_asf
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.inputs.discover import find_clips
+from mocapzip.progress import progress
 
 
 def inspect_paths(paths, asf=None, fps: float = 120.0) -> dict:

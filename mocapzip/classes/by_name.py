@@ -1,7 +1,7 @@
 """Which clips share a PCA basis: `--classes single|subject|FILE.csv`.
 
 A class is just a name per clip. Automatic classes (`--classes auto[:K]`, PPCA and
-annealing) need the loaded poses: they live in `mocapzip.autoclass`, dispatched by
+annealing) need the loaded poses: they live in `mocapzip.classes.auto`, dispatched by
 `archive.compress`.
 """
 
@@ -11,10 +11,10 @@ import csv
 from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 
-from .formats.errors import MocapFormatError
-from .formats.text import read_regular_file
-from .inputs import ClipSource
-from .limits import MAX_PATH_BYTES
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import read_regular_file
+from mocapzip.inputs.discover import ClipSource
+from mocapzip.limits import MAX_PATH_BYTES
 
 
 def class_namer(mode: str) -> Callable[[ClipSource], str]:

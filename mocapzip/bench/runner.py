@@ -3,7 +3,7 @@
 What is measured, and how (the same text goes into every JSON report under "rules"):
 
 * Clips are what `mcz compress` would store: every AMC under the inputs, paired with
-  its skeleton (`mocapzip.inputs.find_clips`).
+  its skeleton (`mocapzip.inputs.discover.find_clips`).
 * mcz runs are real archives. `mcz compress` and `mcz decompress` run in child
   processes (so their peak memory is the child's `ru_maxrss`, and their time excludes
   interpreter start-up), the decompressed AMC and ASF files are read back with
@@ -20,7 +20,7 @@ What is measured, and how (the same text goes into every JSON report under "rule
 * Joint error: Euclidean distance (cm) of each joint in each frame between forward
   kinematics of the original and of the decoded clip (Hou et al. eq. 11); mean over
   joints and frames, 99th percentile and maximum over every joint of every frame.
-  Skin error: thesis eq. 3.1 on the faux mesh (`mocapzip.metrics.skin_error`).
+  Skin error: thesis eq. 3.1 on the faux mesh (`mocapzip.motion.metrics.skin_error`).
 * Speed: frames / seconds. Encode: from AMC files on disk to compressed bytes on disk;
   decode: from compressed bytes to AMC files on disk (mcz, xz, zstd). Hou et al.
   decode to joint positions in memory (the codec has no AMC output); its encode time
@@ -29,7 +29,7 @@ What is measured, and how (the same text goes into every JSON report under "rule
 * xz -9 / zstd -19: each AMC file compressed on its own (`lzma` preset 9, `zstandard`
   level 19), like `xz -9 *.amc`; the skeleton files too, their bytes shared among the
   clips using them in proportion to frames. Lossless, checked byte for byte.
-* Hou et al. 2015 (`mocapzip.baselines.hou`): codes joint positions only, so its
+* Hou et al. 2015 (`mocapzip.bench.baselines.hou`): codes joint positions only, so its
   error is measured on joint positions directly (no AMC text, no skin error). For each
   target error, each clip gets the parameters (L, k, Q) from a grid with the fewest
   bytes that meet the target (`hou`: section IV, each clip coded alone with its own
@@ -63,11 +63,11 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from . import __version__
-from .classes import read_class_table
-from .formats.errors import MocapFormatError
-from .inputs import ClipSource, find_clips
-from .progress import progress
+from mocapzip import __version__
+from mocapzip.classes.by_name import read_class_table
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.inputs.discover import ClipSource, find_clips
+from mocapzip.progress import progress
 
 CODECS = ("mcz", "hou", "hou-shared", "xz", "zstd")
 XZ_PRESET = 9
@@ -188,9 +188,9 @@ def _tasks(options: BenchOptions) -> list[dict]:
 
 
 def _load_clips(sources: list[ClipSource], options: BenchOptions):
-    from .formats.amc import read_amc
-    from .formats.asf import read_asf
-    from .skeleton import SkeletonModel
+    from mocapzip.formats.amc import read_amc
+    from mocapzip.formats.asf import read_asf
+    from mocapzip.motion.skeleton import SkeletonModel
 
     groups = _groups(sources, options.groups, options.inputs)
     skeletons, models, clips = {}, {}, []
@@ -241,8 +241,8 @@ def _find_manifests(inputs) -> list[Path]:
 
 def _original(clip: Clip, models):
     """(model, motion, pose) of the original clip, read again (nothing is kept between runs)."""
-    from .formats.amc import read_amc
-    from .kinematics import forward
+    from mocapzip.formats.amc import read_amc
+    from mocapzip.motion.kinematics import forward
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # already shown once when the clips were loaded
@@ -253,8 +253,8 @@ def _original(clip: Clip, models):
 
 def _measure(clip: Clip, models, decoded_model, decoded_motion) -> tuple[dict, np.ndarray]:
     """Errors of a decoded clip (a Motion read back from AMC text) against the original."""
-    from .kinematics import forward
-    from .metrics import joint_distances, skin_error
+    from mocapzip.motion.kinematics import forward
+    from mocapzip.motion.metrics import joint_distances, skin_error
 
     model, motion, pose = _original(clip, models)
     if decoded_motion.n_frames != motion.n_frames or decoded_motion.values.shape[1] != motion.values.shape[1]:
@@ -288,7 +288,7 @@ def _python_c(code: str) -> list[str]:
 def _run_child(job: dict, quiet: bool) -> dict:
     """Run one job in a fresh Python process; return its JSON answer plus its peak RSS (MB)."""
     job = {**job, "quiet": quiet}
-    proc = subprocess.Popen(_python_c("from mocapzip.bench import _child_main; _child_main()"),
+    proc = subprocess.Popen(_python_c("from mocapzip.bench.runner import _child_main; _child_main()"),
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE)
     try:
         proc.stdin.write(json.dumps(job).encode())
@@ -310,7 +310,7 @@ def _run_child(job: dict, quiet: bool) -> dict:
 
 def _child_main() -> None:
     """Entry of a child process: a JSON job on stdin, a JSON answer on stdout."""
-    from . import progress as progress_module
+    from mocapzip import progress as progress_module
 
     job = json.loads(sys.stdin.read())
     progress_module.QUIET = job.get("quiet", False)
@@ -324,7 +324,7 @@ def _child_main() -> None:
 
 
 def _child_compress(job: dict) -> dict:
-    from . import archive
+    from mocapzip import archive
 
     settings = archive.Settings(**job["settings"])
     start = time.perf_counter()
@@ -333,7 +333,7 @@ def _child_compress(job: dict) -> dict:
 
 
 def _child_decompress(job: dict) -> dict:
-    from . import archive
+    from mocapzip import archive
 
     start = time.perf_counter()
     summary = archive.decompress(job["archive"], job["output"], force=True)
@@ -401,11 +401,11 @@ def _transform_config(name: str, wavelet: str) -> dict:
 
 
 def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: Path) -> dict:
-    from .archive import Archive
-    from .formats.amc import read_amc
-    from .formats.asf import read_asf
-    from .formats.mcz import ArchiveReader
-    from .skeleton import SkeletonModel
+    from mocapzip.archive import Archive
+    from mocapzip.formats.amc import read_amc
+    from mocapzip.formats.asf import read_asf
+    from mocapzip.formats.mcz import ArchiveReader
+    from mocapzip.motion.skeleton import SkeletonModel
 
     work = Path(tempfile.mkdtemp(dir=tmp))
     classes = task["classes"]
@@ -470,7 +470,7 @@ def _payload_parts(blob: bytes, coder: str, priors) -> dict:
     The context coder writes both matrices into one stream, so the pose share is the size
     of the pose matrix coded alone (with the stream's header) and the root gets the rest.
     """
-    from .lossy import CodedClip
+    from mocapzip.codec.clip_stream import CodedClip
 
     try:
         coded = CodedClip.from_payload(blob, coder, priors=priors)
@@ -497,14 +497,17 @@ def _mcz_label(task: dict) -> str:
 
 def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOptions) -> dict:
     """--classes none: each clip coded with the codec's stages and an identity basis (see the module doc)."""
-    from .archive import Settings
-    from .clip import channels_from, load_clips, skeleton_params
-    from .codec import get_stage
-    from .formats.amc import Motion, format_amc, parse_amc
-    from .lossy import ClassBasis, CodedClip, code_clip, reconstruct
-    from .representations.positions import flips_from_ranges
+    from mocapzip.archive import Settings
+    from mocapzip.codec.basis import ClassBasis
+    from mocapzip.codec.clip_stream import CodedClip, reconstruct
+    from mocapzip.formats.amc import Motion, format_amc, parse_amc
+    from mocapzip.inputs.clip import load_clips
+    from mocapzip.ratecontrol.encode import code_clip
+    from mocapzip.representations.positions import flips_from_ranges
+    from mocapzip.representations.weighted import channels_from_weighted, skeleton_params
+    from mocapzip.stages import get_stage
 
-    transform = get_stage(_transform_config(task["transform"], options.wavelet))
+    transform = get_stage("transform", _transform_config(task["transform"], options.wavelet))
     dead_zone, axes_from_positions = Settings().dead_zone, Settings().axes_from_positions
     rows, distances = [], {}
     encode_seconds = decode_seconds = 0.0
@@ -518,12 +521,11 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
         payload = coded.payload()
         n_frames = loaded.motion.n_frames
         middle = time.perf_counter()
-        model, layout = loaded.model, loaded.layout
+        model, layout, representation = loaded.model, loaded.layout, loaded.representation
         poses, root = reconstruct(CodedClip.from_payload(payload), basis, transform, dead_zone, n_frames)
-        poses = poses / getattr(loaded, "weights", 1.0)  # the codec's pose weights, when it has them
-        params = {**skeleton_params(model, task["representation"], layout),
+        params = {**skeleton_params(model, representation, layout),
                   "twist": flips_from_ranges(twist_flips, model, n_frames)}
-        values = channels_from(model, task["representation"], layout, poses, root, params, axes_from_positions)
+        values = channels_from_weighted(model, representation, layout, poses, root, params, loaded.axis_weight_cm)
         m = loaded.motion
         text = format_amc(Motion(m.bones, m.counts, values, m.frame_numbers, m.header, clip.path))  # as decompress does
         decode_seconds += time.perf_counter() - middle
@@ -586,9 +588,9 @@ def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Pat
 
 
 def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOptions) -> list[dict]:
-    from .baselines import hou
-    from .formats.amc import read_amc
-    from .kinematics import forward
+    from mocapzip.bench.baselines import hou as hou
+    from mocapzip.formats.amc import read_amc
+    from mocapzip.motion.kinematics import forward
 
     grid = {"grid_l": hou.GRID_L, "grid_k": hou.GRID_K, "grid_q": hou.GRID_Q, **(options.hou_grid or {})}
     chosen: dict[float, dict[str, dict]] = {t: {} for t in targets}
@@ -627,7 +629,7 @@ def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOpti
         run = _finish_run({"codec": "hou", "label": f"Hou et al. 2015, best (L, k, Q) per clip for mean error <= {t:g} cm",
                            "target_error_cm": t,
                            "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16,
-                                        "r": "0.1 ceil(L/50)", "entropy": "mocapzip.codec.entropy.encode_ints"},
+                                        "r": "0.1 ceil(L/50)", "entropy": "mocapzip.codec.entropy.zstd.encode_ints"},
                            "search_seconds": search_seconds, "missing": missing,
                            "error_measured_on": "joint positions directly (the codec stores positions, no rotations)"},
                           rows, [c for c in clips if c.path not in missing], distances,
@@ -638,7 +640,7 @@ def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOpti
 
 
 def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: BenchOptions) -> list[dict]:
-    from .baselines import hou
+    from mocapzip.bench.baselines import hou as hou
 
     grid = {"grid_l": hou.GRID_L, "grid_k": hou.GRID_K, "grid_q": hou.GRID_Q, **(options.hou_grid or {})}
     groups: dict = {}
@@ -683,7 +685,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: Be
             {"codec": "hou-shared", "label": f"Hou et al. 2015, one basis per subject, mean error <= {t:g} cm",
              "target_error_cm": t,
              "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16, "groups": "subject",
-                          "r": "0.1 ceil(L/50)", "entropy": "mocapzip.codec.entropy.encode_ints"},
+                          "r": "0.1 ceil(L/50)", "entropy": "mocapzip.codec.entropy.zstd.encode_ints"},
              "search_seconds": search_seconds, "missing": missing[t],
              "error_measured_on": "joint positions directly (the codec stores positions, no rotations)"},
             rows[t], kept, distances[t],

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .codec.pca import CovarianceAccumulator, PcaBasis
+from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 
 DEFAULT_VARIANCE_SHARE = 0.99  # thesis: Q_k holds 99 % of the class's variance
 RHO_FLOOR = 1e-9  # relative to the total variance: keeps log P finite for degenerate classes

@@ -14,10 +14,10 @@ import json
 import fastjsonschema
 import pywt
 
-from .formats.amc import MAX_FRAME_NUMBER
-from .formats.mcz import ArchiveError
-from .limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
-from .representations import NAMES as REPRESENTATIONS
+from mocapzip.formats.amc import MAX_FRAME_NUMBER
+from mocapzip.formats.mcz import ArchiveError
+from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
+from mocapzip.stages import stage_classes, stage_ids
 
 MAX_NAME_BYTES = 255  # one path component: what POSIX file systems allow
 MAX_DOF_PER_BONE = 7  # an ASF bone's channels: rx ry rz tx ty tz l
@@ -76,17 +76,14 @@ _CLIP = _record(
     },
 )
 
-_TRANSFORM = {"anyOf": [
-    _record({"id": {"enum": ["dct"]}}),
-    _record({"id": {"enum": ["identity"]}}),
-    _record({"id": {"enum": ["dwt"]}, "wavelet": _STRING,
-             "level": {"anyOf": [{"type": "integer", "minimum": 0, "maximum": 32}, {"type": "null"}]}}),
-]}
+# one record per registered transform: its id and its parameters' schemas (`param_schema`)
+_TRANSFORM = {"anyOf": [_record({"id": {"enum": [codec_id]}, **cls.param_schema})
+                        for codec_id, cls in stage_classes("transform").items()]}
 
 _SETTINGS = _record(
     {
         "error_cm": _POSITIVE,
-        "representation": {"enum": list(REPRESENTATIONS)},
+        "representation": {"enum": list(stage_ids("representation"))},
         "transform": _TRANSFORM,
         "classes": _STRING,
         "split": {"anyOf": [{"type": "null"}, {"type": "array", "minItems": 3, "maxItems": 3, "items": _ERROR}]},
@@ -98,7 +95,7 @@ _SETTINGS = _record(
     },
     {
         "segment": {"type": "boolean"},
-        "coefficient_coder": {"enum": ["primed", "context", "zstd", "auto"]},
+        "coefficient_coder": {"enum": [*stage_ids("coefficient coder"), "auto"]},
         "axes_from_positions": {"type": "boolean"},
     },
 )

@@ -5,7 +5,7 @@ joint j >= 1 is the ASF bone of the same name, and parents always come before
 their children. Joint j's *position* is the end point of bone j (the root's
 position is the root translation), so a CMU skeleton has 31 joint positions.
 
-All matrices use the row-vector convention of `mocapzip.rotations`.
+All matrices use the row-vector convention of `mocapzip.motion.rotations`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from functools import cached_property
 
 import numpy as np
 
-from .formats.asf import ROOT, Skeleton
-from .formats.errors import MocapFormatError
-from .rotations import euler_matrix
+from mocapzip.formats.asf import ROOT, Skeleton
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.motion.rotations import euler_matrix
 
 # Bones shorter than this (cm) are "short": their direction cannot be read back
 # reliably from two nearby joint positions once those are compressed, so the

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
-from ..codec.entropy import decode_ints, encode_ints, pack_blobs, unpack_blobs
+from mocapzip.codec.entropy.zstd import decode_ints, encode_ints, pack_blobs, unpack_blobs
 
 MAGIC = b"HOU1"
 _HEADER = struct.Struct("<4sHIHHhH")

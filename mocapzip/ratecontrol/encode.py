@@ -1,6 +1,6 @@
-"""The lossy codec: one PCA basis per class, a temporal transform of the projected curves,
-uniform dead-zone quantisation and context-modelled range coding (codec/coefficients.py),
-with the error budget found by search.
+"""Rate control of the lossy codec: per class a PCA basis, per clip a temporal band and the
+largest quantiser step whose decode, scored end to end (`inputs.clip.LoadedClip.error`),
+stays within the error target. The stages it drives live in `mocapzip.codec`.
 
 Why one quantiser step for every coefficient of a clip: the PCA basis and the DCT are
 orthonormal, so a coefficient error of size e costs the same squared pose error
@@ -16,253 +16,23 @@ coded finer.
 
 from __future__ import annotations
 
-import io
 import math
 import multiprocessing
 import os
-import struct
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
-from .codec.coefficients import Priors, check_matrix_shape, decode_matrices, encode_matrices, matrix_shapes
-from .codec.entropy import decode_ints, encode_ints, encode_sparse
-from .codec.pca import CovarianceAccumulator, PcaBasis
-from .codec.quantise import UniformQuantiser
-from .formats.errors import MocapFormatError
-from .limits import MAX_VALUES_PER_CLIP
-from .search import largest_step, smallest_count
+from mocapzip.codec.basis import ClassBasis
+from mocapzip.codec.clip_stream import CodedClip, reconstruct, scale_root
+from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
+from mocapzip.codec.quantise import UniformQuantiser
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.ratecontrol.search import largest_step, smallest_count
 
-YAW_RADIUS_CM = 50.0  # a typical joint's distance from the root: yaw error x this = cm
-MEAN_STEP_CM = 1e-3  # the class mean is kept finely: its error repeats on every frame
-# root track step / pose step; `python benchmarks/root_step.py` (CMU subjects 02, 07, 13 and 35
-# at 1 cm, B/frame, format 4): 1.0: 1.625, 0.5: 1.502, 0.25: 1.457, 0.2: 1.452, 0.1: 1.463
 ROOT_STEP_RATIO = 0.2
-
-
-@dataclass
-class ClassBasis:
-    """A class's mean pose and its first Q principal directions, as stored (quantised).
-
-    Each direction j is stored on its own grid, steps[j]. A basis error d moves a pose by
-    d times the coefficient, so directions with small coefficients (small variance) can be
-    stored coarsely: `steps_for` makes that trade explicit.
-    """
-
-    mean: np.ndarray  # (M,)
-    components: np.ndarray  # (M, Q)
-    steps: np.ndarray  # (Q,) quantiser step of each stored direction
-
-    @staticmethod
-    def steps_for(variances: np.ndarray, error_cm: float, precision: float) -> np.ndarray:
-        """Basis steps that add about `precision` x error_cm to a pose along each direction."""
-        return precision * error_cm / np.sqrt(np.maximum(variances, (precision * error_cm) ** 2))
-
-    @classmethod
-    def quantised(cls, mean: np.ndarray, components: np.ndarray, steps: np.ndarray) -> "ClassBasis":
-        """Round mean and components to what the archive stores, so encoding sees the decoder's basis."""
-        return cls.decode(cls(mean, components, np.asarray(steps, np.float32)).encode())
-
-    def encode(self, coder: str = "context") -> bytes:
-        """`coder` as for `CodedClip.payload`. "context" and "primed" write one range-coded
-        stream of three matrices: the mean's integers, each basis row's reference row and the
-        basis integers less their reference row's (`_reference_rows`); bases are too few to
-        train priors on. "zstd" (format 1) writes the mean and basis integers as two ints blobs."""
-        steps = self.steps.astype("<f4")
-        ints = np.round(self.components / steps.astype(np.float64)).astype(np.int64)
-        mean_ints = np.round(self.mean / MEAN_STEP_CM).astype(np.int64)
-        out = io.BytesIO()
-        out.write(struct.pack("<II", self.mean.size, self.components.shape[1]))
-        out.write(steps.tobytes())
-        if coder != "zstd":
-            references = _reference_rows(ints)
-            rows = np.arange(len(ints))
-            residuals = ints - np.where(references[:, None] >= 0, ints[references], 0)
-            offsets = np.where(references >= 0, rows - references, 0)  # 0: no reference
-            out.write(encode_matrices([mean_ints[:, None], offsets[:, None], residuals]))
-        else:
-            for blob in (encode_ints(mean_ints), encode_ints(ints)):
-                out.write(struct.pack("<I", len(blob)))
-                out.write(blob)
-        return out.getvalue()
-
-    @classmethod
-    def decode(cls, blob: bytes, coder: str = "context") -> "ClassBasis":
-        """Inverse of `encode`; the declared m x q is checked against the limits before anything is allocated."""
-        m, q = _unpack("<II", blob, 0)
-        check_matrix_shape(m, q)
-        pos = 8
-        steps = np.frombuffer(blob, "<f4", q, pos)
-        pos += 4 * q
-        if coder != "zstd":
-            # Format 3 stores mean, reference offsets and residuals; format 2 mean and basis.
-            # Checked on the header, before anything is decoded (a damaged shape must not allocate).
-            stored = matrix_shapes(blob[pos:])
-            expected = [(m, 1), (m, 1), (m, q)] if len(stored) == 3 else [(m, 1), (m, q)]
-            if stored != expected:
-                raise ValueError(f"class basis matrices of shapes {stored} for a {m} x {q} basis")
-            parts = decode_matrices(blob[pos:], expected)
-            if len(parts) == 3:
-                parts = [parts[0], _undo_references(parts[2], parts[1].ravel())]
-        else:
-            parts = []
-            for values in (m, m * q):
-                (n,) = _unpack("<I", blob, pos)
-                parts.append(decode_ints(blob[pos + 4 : pos + 4 + n], values))
-                pos += 4 + n
-            if pos != len(blob):
-                raise ValueError("class basis has trailing bytes")
-        mean = parts[0].reshape(m).astype(np.float64) * MEAN_STEP_CM
-        components = parts[1].reshape(m, q).astype(np.float64) * steps.astype(np.float64)
-        return cls(mean, components, steps.copy())
-
-    @property
-    def q(self) -> int:
-        return self.components.shape[1]
-
-    def project(self, poses: np.ndarray) -> np.ndarray:
-        """Least-squares coefficients (the stored basis is only nearly orthonormal)."""
-        return (poses - self.mean) @ self._projector
-
-    @cached_property
-    def _projector(self) -> np.ndarray:
-        return np.linalg.pinv(self.components).T
-
-    def reconstruct(self, coefficients: np.ndarray) -> np.ndarray:
-        return self.mean + coefficients @ self.components.T
-
-
-def _reference_rows(ints: np.ndarray) -> np.ndarray:
-    """For each basis row, the earlier row it is best coded against (-1: none).
-
-    Pose columns come in related groups: a child joint's position and axis move with its
-    parent's, so their basis rows are alike, and the difference is smaller to code. Each
-    row takes the earlier row that leaves the smallest sum of absolute differences, if
-    that beats coding the row as it is.
-    """
-    references = np.full(len(ints), -1, np.int64)
-    for row in range(1, len(ints)):
-        costs = np.abs(ints[row] - ints[:row]).sum(axis=1)
-        best = int(np.argmin(costs))
-        if costs[best] < np.abs(ints[row]).sum():
-            references[row] = best
-    return references
-
-
-def _undo_references(residuals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Basis integers from `_reference_rows` residuals and offsets (row - reference, 0: none)."""
-    rows = np.arange(len(offsets))
-    if np.any((offsets < 0) | (offsets > rows)):
-        raise ValueError("class basis refers to a row that does not come before")
-    ints = residuals.copy()
-    for row in np.flatnonzero(offsets):
-        ints[row] += ints[row - offsets[row]]
-    return ints
-
-
-def scale_root(root: np.ndarray) -> np.ndarray:
-    """Root track (x, y, z cm, yaw rad) in cm-equivalent units."""
-    return root * np.array([1.0, 1.0, 1.0, YAW_RADIUS_CM])
-
-
-def unscale_root(scaled: np.ndarray) -> np.ndarray:
-    return scaled / np.array([1.0, 1.0, 1.0, YAW_RADIUS_CM])
-
-
-def dequantise_curves(ints: np.ndarray, step: float, transform, dead_zone: float, n_frames: int) -> np.ndarray:
-    return transform.inverse(UniformQuantiser(step, dead_zone).dequantise(ints), n_frames)
-
-
-@dataclass
-class CodedClip:
-    """A clip's quantised coefficients: what the archive stores for it.
-
-    Three stream layouts, named by the archive's `coefficient_coder` setting:
-    "primed" (coefficients.py: pose and root matrices in one range-coded stream whose models
-    start from the archive's priors; format version 3), "context" (the same, models starting
-    at 1/2; format 2) and "zstd" (entropy.py: each matrix in its own zstd frame; format 1).
-    """
-
-    pose_step: float
-    pose_ints: np.ndarray  # (frames, Q) transform coefficients
-    root_step: float
-    root_ints: np.ndarray | None  # (frames, 4), or None for representations without a root track
-
-    @property
-    def matrices(self) -> list[np.ndarray]:
-        return [self.pose_ints] if self.root_ints is None else [self.pose_ints, self.root_ints]
-
-    def payload(self, coder: str = "context", priors: Priors | None = None) -> bytes:
-        """`priors`: the archive's, for coder "primed"."""
-        matrices, priors = self.matrices, _priors_for(coder, priors)
-        if coder != "zstd":
-            return struct.pack("<ff", self.pose_step, self.root_step) + encode_matrices(matrices, priors)
-        parts = [encode_sparse(m) for m in matrices]
-        head = struct.pack("<ddB", self.pose_step, self.root_step, len(parts))
-        return head + b"".join(struct.pack("<I", len(p)) + p for p in parts)
-
-    @classmethod
-    def from_payload(cls, blob: bytes, coder: str = "context", shapes=None,
-                     priors: Priors | None = None) -> "CodedClip":
-        """`shapes`: the pose and root matrices' shapes when the caller knows them (checked first).
-
-        The payload may come from anyone: its matrix count and shapes are checked (against
-        `shapes` and the limits, `check_matrix_shape`) before anything is allocated for them.
-        """
-        priors = _priors_for(coder, priors)
-        if coder != "zstd":
-            pose_step, root_step = _unpack("<ff", blob, 0)
-            count = len(matrix_shapes(blob[8:]))
-        else:
-            pose_step, root_step, count = _unpack("<ddB", blob, 0)
-        if not 1 <= count <= 2:
-            raise ValueError(f"clip payload holds {count} matrices")
-        if coder != "zstd":
-            arrays = decode_matrices(blob[8:], shapes, priors)
-        else:
-            pos, arrays = 17, []
-            # format 1: each matrix at most the values its expected shape holds (unknown: an AMC clip's)
-            most = [math.prod(shape) for shape in shapes] if shapes is not None else [MAX_VALUES_PER_CLIP] * count
-            for k in range(count):
-                (size,) = _unpack("<I", blob, pos)
-                arrays.append(decode_ints(blob[pos + 4 : pos + 4 + size], most[k]))
-                pos += 4 + size
-                if arrays[-1].ndim != 2:
-                    raise ValueError(f"clip payload holds a matrix of shape {arrays[-1].shape}")
-                check_matrix_shape(*arrays[-1].shape)
-            if pos != len(blob):
-                raise ValueError("clip payload has trailing bytes")
-            if shapes is not None and [a.shape for a in arrays] != [tuple(s) for s in shapes][:count]:
-                raise ValueError(f"clip matrices of shapes {[a.shape for a in arrays]}, expected {list(shapes)}")
-        return cls(pose_step, arrays[0], root_step, arrays[1] if len(arrays) > 1 else None)
-
-
-def _unpack(layout: str, blob: bytes, offset: int) -> tuple:
-    """struct.unpack_from that reports a stream cut short as ValueError, which callers catch."""
-    try:
-        return struct.unpack_from(layout, blob, offset)
-    except struct.error:
-        raise ValueError(f"stream cut short: {struct.calcsize(layout)} bytes needed at byte {offset}") from None
-
-
-def interim_coder(coder: str) -> str:
-    """How clip streams are held until all are coded: as written, except that "primed" and
-    "auto" streams are held as "context" ones (priors are trained on every clip first)."""
-    return "zstd" if coder == "zstd" else "context"
-
-
-def _priors_for(coder: str, priors: Priors | None) -> Priors | None:
-    """The priors a stream of `coder` is coded with (None but for "primed"); refuses unknown coders,
-    which would otherwise be taken for the last layout tried ("auto" is for compress only)."""
-    if coder not in ("primed", "context", "zstd"):
-        raise ValueError(f"unknown coefficient coder {coder!r}")
-    if coder == "primed" and priors is None:
-        raise ValueError("coefficient coder 'primed' needs the archive's priors")
-    return priors if coder == "primed" else None
 
 
 SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), denser below 2,048 frames; the final check all
@@ -272,6 +42,7 @@ BANDS = (1.0, 0.2, 0.16, 0.13, 0.11, 0.095, 0.08, 0.07, 0.06, 0.05, 0.043, 0.036
 STEP_GUESS = 3.0  # typical step / target (CMU, 1 cm): where the step search starts
 MAX_TRUNCATION_SHARE = 0.85  # a band whose truncation alone costs more of the budget is not tried
 BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet the target
+
 
 class TargetError(MocapFormatError):
     """No coding of a clip meets the error target: the target is below the input's own precision."""
@@ -332,7 +103,7 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         _SHARED.clear()
     best = None
     for q in counts:  # in share order: on equal sizes the first share wins
-        size = len(codings[q][0].encode(settings.coefficient_coder)) + sum(map(len, codings[q][1]))
+        size = len(codings[q][0].encode()) + sum(map(len, codings[q][1]))
         if best is None or size < best[0]:
             best = (size, codings[q])
     return best[1]
@@ -386,7 +157,7 @@ def _code_clip(index: int) -> list[tuple[bytes, tuple[float, float], dict]]:
     for basis in _SHARED["bases"]:
         coded, error, twists = code_clip(clip, basis, transform, settings.error_cm, settings.dead_zone,
                                          settings.split)
-        out.append((coded.payload(interim_coder(settings.coefficient_coder)), error, twists))
+        out.append((coded.payload(), error, twists))
     return out
 
 
@@ -478,14 +249,3 @@ def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
         best, best_size = (step, band), size
         low, high, guess = step, step * 8, step * 1.25  # a wider band allows a coarser step
     return best if best is not None else (finest, 1.0)
-
-
-def reconstruct(coded: CodedClip, basis: ClassBasis, transform, dead_zone: float, n_frames: int,
-                frames=slice(None)):
-    """Poses and root track (unscaled) of `frames` from a clip's quantised coefficients."""
-    coef = dequantise_curves(coded.pose_ints, coded.pose_step, transform, dead_zone, n_frames)[frames]
-    poses = basis.reconstruct(coef)
-    root = None
-    if coded.root_ints is not None:
-        root = unscale_root(dequantise_curves(coded.root_ints, coded.root_step, transform, dead_zone, n_frames)[frames])
-    return poses, root

@@ -33,7 +33,7 @@ import zlib
 
 import numpy as np
 
-from mocapzip.codec import entropy
+from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 
 __all__ = ["encode_residuals", "decode_residuals"]

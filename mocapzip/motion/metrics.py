@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kinematics import Pose
-from .skeleton import SkeletonModel
+from mocapzip.motion.kinematics import Pose
+from mocapzip.motion.skeleton import SkeletonModel
 
 # Faux mesh: the four side vertices of each bone's octahedron sit this fraction of
 # the bone's length away from its midpoint.

@@ -14,8 +14,8 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
-from .formats.errors import MocapFormatError
-from .formats.text import check_regular_file
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import check_regular_file
 
 
 @dataclass(frozen=True)

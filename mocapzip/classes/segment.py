@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .codec.pca import CovarianceAccumulator
-from .ppca import PpcaModel
+from mocapzip.codec.pca import CovarianceAccumulator
+from mocapzip.classes.ppca import PpcaModel
 
 MIN_FRAMES = 240  # 2 s at 120 Hz: shorter segments cost more in headers than they save
 HORIZON = 120  # frames scored after the window (1 s at 120 Hz)
@@ -124,3 +124,10 @@ def join_segments(pieces: list[np.ndarray], segments: list[tuple[int, int]], n_f
             weight = np.minimum(weight, np.clip((first + frames + half - centres[lo:hi]) / (2 * half), 0, 1))
         out[lo:hi] += weight.reshape((-1,) + (1,) * (piece.ndim - 1)) * piece
     return out
+
+
+def join_decoded(decoded: list, cores: list[tuple[int, int]], n_frames: int, overlap: int):
+    """(poses, root) of a take from its segments' decoded (poses, root) (`join_segments`)."""
+    poses = join_segments([p for p, _ in decoded], cores, n_frames, overlap)
+    root = None if decoded[0][1] is None else join_segments([r for _, r in decoded], cores, n_frames, overlap)
+    return poses, root

@@ -1,0 +1,13 @@
+"""The archive: settings (`settings`), the encoder (`writer`), the reader (`reader`), old
+formats' decoders (`legacy`) and the checks on meta every reader runs (`meta`).
+
+    compress(inputs, "db.mcz", Settings(error_cm=1.0))
+    with Archive("db.mcz") as archive: archive.decode(0)   # a formats.amc.Motion
+"""
+
+from mocapzip.archive.reader import Archive, decompress, info
+from mocapzip.archive.settings import DEFAULT_ERROR_CM, Settings, SettingsError
+from mocapzip.archive.writer import DEFAULT_CACHE_MB, compress
+
+__all__ = ["DEFAULT_CACHE_MB", "DEFAULT_ERROR_CM", "Archive", "Settings", "SettingsError", "compress", "decompress",
+           "info"]

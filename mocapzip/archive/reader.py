@@ -1,0 +1,317 @@
+"""`mcz decompress` / `info` / `test`: an .mcz archive -> its clips, decoded on demand.
+
+The reader trusts nothing in the file (`meta.validate`, `mocapzip.limits`) and dispatches on
+the container's `format_version`: format 4's streams are decoded by the codec modules, older
+ones' differences by `legacy` alone. Every clip goes through one decode tail
+(`representations.weighted.channels_from_weighted`), as the encoder's error check does.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import os
+import secrets
+from collections import defaultdict
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+
+from mocapzip.archive import legacy
+from mocapzip.archive.meta import parse_json
+from mocapzip.archive.meta import validate as validate_meta
+from mocapzip.archive.settings import Settings
+from mocapzip.classes.segment import coded_range, join_decoded
+from mocapzip.codec.basis import ClassBasis
+from mocapzip.codec.clip_stream import CodedClip, reconstruct
+from mocapzip.codec.entropy.coefficients import Priors, check_matrix_shape
+from mocapzip.codec.entropy.zstd import decode_bytes
+from mocapzip.formats.amc import AmcStyle, Motion, format_amc
+from mocapzip.formats.asf import parse_asf
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.mcz import ArchiveError, ArchiveReader
+from mocapzip.formats.text import MAX_ABS_VALUE
+from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
+from mocapzip.progress import progress
+from mocapzip.representations.positions import flips_from_ranges
+from mocapzip.representations.weighted import channels_from_weighted, skeleton_params
+
+
+class Archive:
+    """An opened .mcz: metadata up front, clips decoded on demand (random access)."""
+
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        self._reader = ArchiveReader(path)
+        try:
+            self.meta = self._json("meta")
+            # every file a full decompress writes, each path checked to stay inside the output folder
+            self.files = validate_meta(self.meta, self._reader.names(), self.path)
+            self._skeleton_texts = self._skeletons()
+            version = self.format_version
+            # fields older formats did not have, as those formats meant them
+            self.settings = Settings(**{**legacy.SETTINGS_DEFAULTS.get(version, {}), **self.meta["settings"]})
+            coders = legacy.CODERS.get(version, legacy.CODERS[3])
+            if not self.settings.lossless and self.settings.coefficient_coder not in coders:
+                raise ArchiveError(f"meta: settings.coefficient_coder: {self.settings.coefficient_coder!r} is not "
+                                   f"one format {version} writes ({', '.join(coders)})", self.path)
+            if version not in legacy.SETTINGS_DEFAULTS and "axes_from_positions" not in self.meta["settings"]:
+                raise ArchiveError(f"meta: settings.axes_from_positions: missing (format {version} stores it)",
+                                   self.path)
+            try:
+                self.stages = self.settings.stages()  # the chain the settings name, from the registry
+            except ValueError as exc:
+                raise ArchiveError(f"meta: settings: {exc}", self.path) from None
+        except BaseException:
+            self._reader.close()
+            raise
+        self._decode_class = legacy.CLASS_DECODERS.get(version, ClassBasis.decode)
+        self._decode_clip = legacy.CLIP_DECODERS.get(version, self._coded_clip)
+        self._priors: Priors | None = None
+        self._bases: dict[int, ClassBasis] = {}
+        self._models: dict[int, SkeletonModel] = {}
+
+    def _json(self, name):
+        try:
+            return parse_json(decode_bytes(self._reader.read(name)))
+        except KeyError:
+            raise ArchiveError(f"{name}: stream missing", self.path) from None
+        except (ValueError, RecursionError) as exc:  # also bad UTF-8, bad JSON and JSON nested too deep
+            raise ArchiveError(f"{name}: {exc}", self.path) from exc
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._reader.close()
+
+    @property
+    def clips(self) -> list[dict]:
+        return self.meta["clips"]
+
+    def _skeletons(self) -> list[str]:
+        """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
+        texts = self._json("skeletons")
+        if not (isinstance(texts, list) and len(texts) == len(self.meta["skeletons"])
+                and all(isinstance(t, str) and max(t, default="\0") <= "\xff" for t in texts)):
+            raise ArchiveError(f"skeletons: expected {len(self.meta['skeletons'])} ASF texts, as meta lists",
+                               self.path)
+        return texts
+
+    def skeleton_text(self, index: int) -> str:
+        return self._skeleton_texts[index]
+
+    @property
+    def priors(self) -> Priors | None:
+        """Where the clip streams' models start (coefficient coder "primed"), else None."""
+        if self.settings.lossless or not self.stages["coefficient coder"].needs_priors:
+            return None
+        if self._priors is None:
+            try:
+                self._priors = Priors.decode(decode_bytes(self._reader.read("priors")))
+            except KeyError:
+                raise ArchiveError("priors: stream missing", self.path) from None
+            except ValueError as exc:
+                raise ArchiveError(f"priors: damaged ({exc})", self.path) from exc
+        return self._priors
+
+    def decode(self, index: int) -> Motion:
+        """The clip's motion as decoded (lossy: within the stored error of the original)."""
+        row = self.clips[index]
+        name = f"clip/{index:05d}"
+        try:
+            if self.settings.lossless:
+                values = self.stages["lossless coder"].decode(self._reader.read(name))
+            else:
+                model = self._model(row["skeleton"])
+                layout = model.layout(ChannelLayout(tuple(row["bones"]), tuple(row["counts"]), row["angle_unit"]))
+                if "segments" in row:  # --segment: the segments joined, then turned into channels in one go
+                    decoded, cores = [], []
+                    for part in row["segments"]:
+                        name = part["stream"]
+                        lo, hi = coded_range(part["first"], part["frames"], row["frames"], row["segment_overlap"])
+                        decoded.append(self._reconstruct(name, part["class"], hi - lo))
+                        cores.append((part["first"], part["frames"]))
+                    poses, root = join_decoded(decoded, cores, row["frames"], row["segment_overlap"])
+                else:
+                    poses, root = self._reconstruct(name, row["class"], row["frames"])
+                representation = self.stages["representation"]
+                params = {**skeleton_params(model, representation, layout),
+                          "twist": flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])}
+                values = channels_from_weighted(model, representation, layout, poses, root, params,
+                                                self.settings.axis_weight_cm)
+        except ArchiveError:
+            raise
+        except (ValueError, KeyError, IndexError, EOFError, MocapFormatError) as exc:
+            raise ArchiveError(f"{name} ({row['path']}): damaged ({exc})", self.path) from exc
+        if values.shape != (row["frames"], sum(row["counts"])):
+            raise ArchiveError(f"{name} ({row['path']}): decoded shape {values.shape} does not match", self.path)
+        frames = np.arange(row["first_frame"], row["first_frame"] + row["frames"])
+        return Motion(row["bones"], row["counts"], values, frames, row["header"], row["path"], AmcStyle(**row["style"]))
+
+    def file_bytes(self, kind: str, index: int) -> bytes:
+        """The bytes `decompress` writes for an entry of `files`: ("amc", clip) or ("asf", skeleton).
+
+        An AMC that mcz could not read back (values it refuses) is an error here, not a file.
+        """
+        if kind == "asf":
+            return self.skeleton_text(index).encode("latin-1")
+        motion = self.decode(index)
+        if not np.all(np.abs(motion.values) <= MAX_ABS_VALUE):
+            raise ArchiveError(f"clip/{index:05d} ({motion.path}): damaged (decoded values beyond "
+                               f"+-{MAX_ABS_VALUE:g}, which no AMC reader accepts)", self.path)
+        return format_amc(motion).encode(motion.style.encoding)
+
+    def _reconstruct(self, stream: str, class_index: int, n_frames: int):
+        """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
+        basis = self._basis(class_index)
+        check_matrix_shape(n_frames, basis.mean.size)  # the decoded poses: bounded before they are made
+        coded = self._decode_clip(self._reader.read(stream), [(n_frames, basis.q), (n_frames, 4)])
+        return reconstruct(coded, basis, self.stages["transform"], self.settings.dead_zone, n_frames)
+
+    def _coded_clip(self, blob: bytes, shapes) -> CodedClip:
+        return CodedClip.from_payload(blob, self.settings.coefficient_coder, shapes, self.priors)
+
+    def _model(self, k: int) -> SkeletonModel:
+        if k not in self._models:
+            try:
+                asf = parse_asf(self.skeleton_text(k).encode("latin-1"), self.meta["skeletons"][k]["name"])
+                self._models[k] = SkeletonModel.from_asf(asf)
+            except (MocapFormatError, ValueError) as exc:
+                if isinstance(exc, ArchiveError):
+                    raise
+                raise ArchiveError(f"skeletons: skeleton {k} is not a valid ASF ({exc})", self.path) from exc
+        return self._models[k]
+
+    def _basis(self, k: int) -> ClassBasis:
+        if k not in self._bases:
+            name = f"class/{k:04d}"
+            try:
+                self._bases[k] = self._decode_class(self._reader.read(name))
+            except (ValueError, KeyError) as exc:
+                raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
+        return self._bases[k]
+
+    def stream_sizes(self) -> dict[str, int]:
+        return self._reader.sizes()
+
+    @property
+    def format_version(self) -> int:
+        return self._reader.format_version
+
+    def verify_checksums(self) -> None:
+        """Check every stream's CRC32 without decoding: cheap, so `info` and `decompress` run it first."""
+        paths = {f"clip/{i:05d}": row["path"] for i, row in enumerate(self.clips)}
+        for name in self._reader.names():
+            try:
+                self._reader.read(name)
+            except ArchiveError as exc:
+                clip = paths.get(name[:10])  # clip/NNNNN and its segments clip/NNNNN/SSS
+                if clip is None:
+                    raise
+                raise ArchiveError(f"{exc.message} (clip {clip})", self.path) from exc
+
+    def verify(self) -> None:
+        """Check every stream's checksum and make every file a full `decompress` writes, in memory
+        (`mcz test`): an archive that passes decompresses, disk space and permissions aside."""
+        self.verify_checksums()
+        for kind, index in progress(list(self.files.values()), desc="test", unit="file"):
+            self.file_bytes(kind, index)
+
+
+def decompress(archive_path, out_dir, patterns=(), force: bool = False) -> dict:
+    """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`.
+
+    Every path comes from the archive's meta, checked on opening to be relative, free of '.'
+    and '..' and unique (`meta.validate`); each file is also refused if its folder resolves
+    outside `out_dir` through a symbolic link already there.
+    """
+    out = Path(out_dir)
+    with Archive(archive_path) as archive:
+        archive.verify_checksums()  # a damaged archive is refused before any file is written
+        chosen = {i for i, row in enumerate(archive.clips)
+                  if not patterns or any(fnmatch.fnmatch(row["path"], p) for p in patterns)}
+        if not chosen:
+            raise MocapFormatError(f"no clip matches {', '.join(patterns)}", archive_path)
+        folders = {PurePosixPath(archive.clips[i]["path"]).parent for i in chosen}
+        targets = {out.joinpath(*path.split("/")): (kind, index) for path, (kind, index) in archive.files.items()
+                   if (index in chosen if kind == "amc" else PurePosixPath(path).parent in folders)}
+        root = os.path.realpath(out)
+        for path in targets:
+            if os.path.commonpath([root, os.path.realpath(path.parent)]) != root:
+                raise MocapFormatError("its folder leads outside the output folder through a symbolic link; "
+                                       "refusing to write it", path)
+        existing = [p for p in targets if os.path.lexists(p)]
+        if existing and not force:
+            raise FileExistsError(None, "already exists", os.fspath(existing[0]))
+        frames = 0
+        for path, (kind, index) in progress(list(targets.items()), desc="decompress", unit="file"):
+            _write_atomically(path, archive.file_bytes(kind, index))
+            frames += archive.clips[index]["frames"] if kind == "amc" else 0
+    return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    """A new file under a random name, created exclusively (never through a link planted there),
+    then renamed over `path`: an interrupted run never leaves half an AMC behind."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".mcz-{secrets.token_hex(8)}.tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
+    except OSError as exc:
+        raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
+    try:
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.errno and exc.filename is None:  # e.g. a full disk: name the file
+            raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
+        raise
+
+
+def info(archive_path) -> dict:
+    """What `mcz info` shows: settings, classes, per-clip frames and achieved errors, sizes."""
+    size = os.path.getsize(archive_path)
+    with Archive(archive_path) as archive:
+        archive.verify_checksums()  # info on a damaged archive says so (decoding is left to `mcz test`)
+        meta, format_version = archive.meta, archive.format_version
+        stream_sizes = defaultdict(int)
+        for name, length in archive.stream_sizes().items():
+            stream_sizes[name.split("/")[0]] += length
+    frames = sum(r["frames"] for r in meta["clips"])
+    largest_mean = max((r["error_cm"] for r in meta["clips"]), default=0.0)
+    return {
+        "path": os.fspath(archive_path),
+        "format_version": format_version,
+        "tool": meta["tool"],
+        "settings": meta["settings"],
+        "skeletons": len(meta["skeletons"]),
+        "classes": meta["classes"],
+        "auto_classes": meta.get("auto_classes", []),
+        "clips": [_info_row(r) for r in meta["clips"]],
+        "frames": frames,
+        "bytes": size,
+        "bytes_per_frame": size / frames if frames else 0.0,
+        "stream_bytes": dict(stream_sizes),
+        "worst_error_cm": largest_mean,  # = largest_mean_error_cm, kept for old readers
+        "largest_mean_error_cm": largest_mean,  # what -e bounds
+        "largest_max_error_cm": max((r["max_error_cm"] for r in meta["clips"]), default=0.0),
+        "skipped": meta.get("skipped", []),  # clips left out by compress --skip-bad
+        "dropped_frames": sum(r.get("dropped_frames", 0) for r in meta["clips"]),  # of truncated inputs
+    }
+
+
+def _info_row(row: dict) -> dict:
+    """A clip as `info` lists it; a segmented take (--segment) with its segments' frames, classes and errors."""
+    out = {k: row[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")}
+    if "dropped_frames" in row:
+        out["dropped_frames"] = row["dropped_frames"]
+    if "segments" in row:
+        out["segments"] = [{k: s[k] for k in ("first", "frames", "class", "error_cm", "max_error_cm")}
+                           for s in row["segments"]]
+    return out

@@ -1,0 +1,79 @@
+"""What decides an archive's content: `Settings`, stored whole in its meta, and the chain of
+registered stages (`mocapzip.stages`) they name, checked before any input is read."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+from mocapzip.stages import get_stage, stage_ids
+
+DEFAULT_ERROR_CM = 1.0
+AUTO_CODER = "auto"  # compress only: "primed" when the priors pay for themselves, else "context"
+
+
+@dataclass
+class Settings:
+    """Everything that decides the archive's content; stored in it as JSON."""
+
+    error_cm: float = DEFAULT_ERROR_CM
+    representation: str = "aligned"
+    transform: dict = field(default_factory=lambda: {"id": "dct"})
+    classes: str = "subject"
+    split: list[float] | None = None  # forced R, P, T shares of error_cm
+    dead_zone: float = 0.2
+    basis_precision: float = 0.02  # basis rounding error per direction, as a share of error_cm
+    axis_weight_cm: float = 12.0  # weight of bone axis vectors against positions (weighted.pose_weights; solved_bones.py)
+    fps: float = 120.0
+    lossless: bool = False
+    segment: bool = False  # cut long takes at PPCA change points, each segment coded on its own
+    # clip streams' coefficient coder: "primed" (models start from the archive's priors; format 3 on),
+    # "context" (models start at 1/2; format 2 on), "zstd" (format 1, read only); "auto" (compress
+    # only): "primed" when the priors pay for themselves, else "context". Archives store the coder used.
+    coefficient_coder: str = AUTO_CODER
+    # bones whose rotation follows from joint positions store no axis (representations.positions.solved_bones);
+    # absent, in formats 1 to 3: false
+    axes_from_positions: bool = True
+
+    def chain(self) -> dict[str, dict]:
+        """The config of every stage these settings name, by kind: all a decoder needs."""
+        if self.lossless:
+            return {"lossless coder": {"id": "decimal"}}
+        return {"representation": {"id": self.representation, "axes_from_positions": self.axes_from_positions},
+                "transform": self.transform,
+                "quantiser": {"id": "uniform", "dead_zone": self.dead_zone},
+                "coefficient coder": {"id": self.coefficient_coder}}
+
+    def stages(self) -> dict:
+        """The stages of `chain()`, built from the registry (ValueError for an unknown one)."""
+        return {kind: get_stage(kind, config) for kind, config in self.chain().items()}
+
+
+class SettingsError(ValueError):
+    """Settings an archive of this format cannot hold; raised before any input is read."""
+
+
+def written_coders() -> tuple[str, ...]:
+    """Coefficient coders `compress` accepts: those the newest format writes, and "auto"."""
+    return (AUTO_CODER, *stage_ids("coefficient coder", written_only=True))
+
+
+def checked(settings: Settings) -> Settings:
+    """`settings` with the transform's config as its stage writes it (pywt takes 'DB4' for
+    'db4'; readers check the name), or SettingsError for an unknown stage, a number that is not
+    finite, or a coder only old formats wrote (format 1's "zstd": read, never written)."""
+    from mocapzip.formats.mcz import FORMAT_VERSION
+
+    if settings.coefficient_coder not in written_coders():
+        raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
+                            f"{FORMAT_VERSION}; choose one of {', '.join(written_coders())}")
+    numbers = [settings.error_cm, settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
+               settings.fps, *(settings.split or [])]
+    if not all(math.isfinite(x) for x in numbers):
+        raise SettingsError("settings must be finite numbers (no inf or nan)")
+    try:  # both chains, whichever is used: a bad name is refused either way ("auto" is resolved later)
+        lossy = replace(settings, lossless=False, coefficient_coder="context").stages()
+        replace(settings, lossless=True).stages()
+    except (ValueError, KeyError) as exc:
+        raise SettingsError(str(exc).strip('"')) from None
+    return replace(settings, transform=lossy["transform"].get_config())

@@ -1,0 +1,389 @@
+"""`mcz compress`: clips on disk -> the streams of one .mcz archive (format 4).
+
+Streams (see docs/format.md, "Streams written by the codec"):
+  meta        zstd JSON: settings, skeleton and class tables, one row per clip
+  skeletons   zstd JSON list of the ASF texts, byte for byte (they compress well together)
+  class/NNNN  a class's quantised PCA mean and basis (lossy mode)
+  priors      zstd bytes: where the clip streams' models start (coefficient coder "primed")
+  clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
+  clip/NNNNN/SSS  segment SSS of a take cut by --segment (its row in meta lists the segments)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections import defaultdict
+from dataclasses import asdict, dataclass, field, replace
+
+from mocapzip import __version__
+from mocapzip.archive.meta import validate as validate_meta
+from mocapzip.archive.settings import Settings, checked
+from mocapzip.classes.auto import auto_classes, parse_auto
+from mocapzip.classes.by_name import class_namer
+from mocapzip.classes.segment import OVERLAP, coded_range, join_decoded, segment_take
+from mocapzip.codec.clip_stream import CodedClip, reconstruct
+from mocapzip.codec.entropy.coefficients import Priors
+from mocapzip.codec.entropy.zstd import encode_bytes
+from mocapzip.codec.lossless import encode_channels
+from mocapzip.codec.pca import CovarianceAccumulator
+from mocapzip.formats.amc import Motion
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.mcz import ArchiveWriter
+from mocapzip.formats.text import read_regular_file
+from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
+from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
+from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
+from mocapzip.progress import progress
+from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
+from mocapzip.representations.base import Encoded
+from mocapzip.stages import get_stage
+
+TIGHTENINGS = 8  # times a segmented take's segments are coded again, 10 % tighter, if the joined take misses
+# clip streams are held coded "context" until all are coded: "primed" needs priors trained on every clip
+INTERIM_CODER = "context"
+DEFAULT_CACHE_MB = 512  # clips kept in memory between compress's passes (inputs.clip.ClipReader)
+
+
+def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
+             skip_bad: bool = False, cache_bytes: int | None = DEFAULT_CACHE_MB << 20) -> dict:
+    """Compress every clip under `inputs` into `output`; return the summary (also stored in meta).
+
+    With `skip_bad`, clips that cannot be read are left out and listed in the summary's
+    `skipped` (and the archive's meta) instead of stopping the run.
+
+    Clips stream through, so a database larger than memory compresses (docs/architecture.md):
+    a first pass reads each clip to check it, note its row and code it (lossless) or add its
+    poses to its class's covariance; then each class is coded, its clips read again unless
+    they were kept in memory, which they are while they fit in `cache_bytes` (None: no limit).
+    `--classes auto` and `--segment` analyse the poses of all clips together: they keep every
+    clip in memory.
+    """
+    settings = checked(settings)
+    if not force and os.path.lexists(output):
+        raise FileExistsError(None, "already exists", os.fspath(output))
+    started = time.perf_counter()
+    skipped = [] if skip_bad else None  # {"path", "error"} per clip left out
+    sources = find_clips(inputs, asf=asf, skipped=skipped)
+    if not sources and not skipped:
+        raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, inputs)))
+    _refuse_input_as_output(output, [p for s in sources for p in (s.amc, s.asf)]
+                            + [p for p in (asf, settings.classes) if p is not None and os.path.isfile(p)])
+    keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
+    reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
+                        None if keeps_all else cache_bytes, settings.axes_from_positions)
+    with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
+        scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all)
+        if not scan.sources:
+            raise MocapFormatError(f"nothing to compress: all {len(skipped)} inputs were skipped",
+                                   ", ".join(map(os.fspath, inputs)))
+        sources, rows = scan.sources, scan.rows
+        skeleton_paths = sorted({s.asf for s in sources})  # only the skeletons of the clips kept
+        for source, row in zip(sources, rows):
+            row["skeleton"] = skeleton_paths.index(source.asf)
+        units = _units(scan, reader, settings.segment and not settings.lossless)
+        auto_report: dict = {}
+        unit_class = _unit_classes(scan, units, reader, settings, jobs, auto_report)
+        class_names = sorted(set(unit_class))
+        for unit, name in zip(units, unit_class):
+            if unit.first == 0:  # a take's class is its first segment's
+                rows[unit.clip]["class"] = class_names.index(name)
+        classes_meta = []
+        if not settings.lossless:
+            classes_meta, interim = _code_classes(scan, units, unit_class, class_names, reader, settings, writer, jobs)
+            coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder)
+            for name, stream in clip_streams.items():
+                writer.add(name, stream)
+            settings = replace(settings, coefficient_coder=coder)
+
+        stored_settings = asdict(settings)
+        if not settings.segment:
+            del stored_settings["segment"]  # absent means off: archives without segments are written as before
+        meta = {
+            "tool": f"mocapzip {__version__}",
+            "settings": stored_settings,
+            "skeletons": [{"name": p.name} for p in skeleton_paths],
+            "classes": classes_meta,
+            "clips": rows,
+        }
+        if auto_report:
+            meta["auto_classes"] = auto_report["groups"]
+        if skipped:
+            meta["skipped"] = skipped
+        order = ["meta", "skeletons", *sorted(writer.names)]
+        skeleton_texts = [read_regular_file(p).decode("latin-1") for p in skeleton_paths]
+        # Checked as every reader checks them: compress never writes an archive a reader refuses.
+        validate_meta(meta, order, os.fspath(output))
+        for name, value in (("meta", meta), ("skeletons", skeleton_texts)):
+            text = json.dumps(value, sort_keys=name == "meta").encode()
+            if len(text) > MAX_DECODED_STREAM_BYTES:
+                raise MocapFormatError(f"the archive's {name} would take {len(text):,} bytes, more than the "
+                                       f"{MAX_DECODED_STREAM_BYTES:,} a reader accepts: compress fewer clips at once",
+                                       output)
+            writer.add(name, encode_bytes(text))
+        size = writer.commit(order)
+    frames = sum(r["frames"] for r in rows)
+    largest_mean = max(r["error_cm"] for r in rows)
+    return {
+        "output": os.fspath(output),
+        "clips": len(rows),
+        "frames": frames,
+        "input_bytes": sum(os.path.getsize(s.amc) for s in sources) + sum(os.path.getsize(p) for p in skeleton_paths),
+        "output_bytes": size,
+        "bytes_per_frame": size / frames,
+        "worst_error_cm": largest_mean,  # kept for old readers: largest_mean_error_cm
+        "largest_mean_error_cm": largest_mean,  # what -e bounds
+        "largest_max_error_cm": max(r["max_error_cm"] for r in rows),
+        "seconds": time.perf_counter() - started,
+        "skipped": skipped or [],
+    }
+
+
+def _refuse_input_as_output(output, inputs: list) -> None:
+    """`-o` naming one of the inputs (or a link to it) would replace it with the archive, even with -f."""
+    if not os.path.exists(output):
+        return
+    target = os.stat(output)
+    for path in inputs:
+        try:
+            same = path is not None and os.path.samestat(target, os.stat(path))
+        except OSError:  # a dangling link: nothing there to destroy (the clip is refused or skipped on its own)
+            continue
+        if same:
+            raise MocapFormatError(f"is also an input ({path}); refusing to replace it, even with -f", output)
+
+
+@dataclass
+class _FirstPass:
+    """What one read of every clip learns before any class is coded."""
+
+    sources: list[ClipSource] = field(default_factory=list)  # the clips kept, in archive order
+    rows: list[dict] = field(default_factory=list)  # their rows in meta; class and errors come later
+    classes: list[str] = field(default_factory=list)  # each clip's class, if paths decide it (not -c auto)
+    poses: dict[str, CovarianceAccumulator] = field(default_factory=dict)  # weighted poses by class (lossy)
+
+
+def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Settings, writer: ArchiveWriter,
+                skipped: list | None, accumulate: bool) -> _FirstPass:
+    """Read every clip once: check it, note its row and class, and code it (lossless) or, with
+    `accumulate`, add its poses to its class's covariance; then offer it to `reader` to keep.
+
+    A clip that cannot be read raises MocapFormatError or OSError; with a `skipped` list it
+    is left out and recorded there instead (`inputs.record_skip`).
+    """
+    if parse_auto(settings.classes) is False:
+        name_class = class_namer(settings.classes)
+    else:  # lossless clips share no basis: there is nothing to group
+        name_class = (lambda source: "all") if settings.lossless else None
+    scan = _FirstPass()
+    for source in progress(sources, desc="read", unit="clip"):
+        try:
+            clip = reader.read(source)
+            if not settings.lossless:
+                _check_codable(clip)
+        except (MocapFormatError, OSError) as exc:
+            if skipped is None:
+                raise
+            record_skip(skipped, source, exc)
+            continue
+        scan.rows.append(_clip_row(clip))
+        if name_class is not None:
+            scan.classes.append(name_class(source))
+        if settings.lossless:
+            writer.add(f"clip/{len(scan.sources):05d}", encode_channels(clip.motion.values))
+            scan.rows[-1].update(error_cm=0.0, max_error_cm=0.0)
+        else:
+            if accumulate:
+                dim = clip.poses.shape[1]
+                scan.poses.setdefault(scan.classes[-1], CovarianceAccumulator(dim)).add(clip.poses)
+            reader.keep(clip)
+        scan.sources.append(source)
+    return scan
+
+
+def _check_codable(clip: LoadedClip) -> None:
+    """Refuse a clip whose coefficients (frames x pose values) or class basis (pose values x at
+    most as many components) would pass the limits every reader holds to: never write what
+    cannot be read back."""
+    frames, width = clip.poses.shape
+    if max(frames, width) * width > MAX_COEFFICIENTS_PER_MATRIX:
+        raise MocapFormatError(f"{frames:,} frames of {width:,} pose values are more than a lossy archive may hold "
+                               f"({MAX_COEFFICIENTS_PER_MATRIX:,} per matrix); use --lossless", clip.source.amc)
+
+
+@dataclass
+class _Unit:
+    """What the codec codes on its own: a whole clip, or (--segment) one segment of a take."""
+
+    clip: int  # index of the take in the archive's clips
+    source: ClipSource  # the take's files
+    first: int  # the segment's first frame in the take (0 for a whole clip)
+    frames: int  # the segment's frame count, up to the next cut
+    coded: tuple[int, int] | None = None  # a segment's frames coded: it and OVERLAP frames past its cuts
+
+    def load(self, reader: ClipReader) -> LoadedClip:
+        clip = reader.load(self.source)
+        return clip if self.coded is None else _frames_of(clip, *self.coded)
+
+    @property
+    def coded_frames(self) -> int:
+        return self.frames if self.coded is None else self.coded[1] - self.coded[0]
+
+
+def _units(scan: _FirstPass, reader: ClipReader, segment: bool) -> list[_Unit]:
+    """Every clip as one unit, or with `segment` cut at its PPCA change points (`segment.segment_take`)."""
+    units = []
+    for i, source in enumerate(progress(scan.sources, desc="segment", unit="clip") if segment else scan.sources):
+        n = scan.rows[i]["frames"]
+        cuts = segment_take(reader.load(source).poses) if segment else [0, n]
+        if len(cuts) == 2:
+            units.append(_Unit(i, source, 0, n))
+        else:
+            units.extend(_Unit(i, source, a, b - a, coded_range(a, b - a, n)) for a, b in zip(cuts[:-1], cuts[1:]))
+    return units
+
+
+def _frames_of(clip: LoadedClip, a: int, b: int) -> LoadedClip:
+    """Frames a..b-1 of a clip as a clip of their own (representations map each frame on its own)."""
+    m, e = clip.motion, clip.encoded
+    motion = Motion(m.bones, m.counts, m.values[a:b], m.frame_numbers[a:b], m.header, m.path, m.style)
+    encoded = Encoded(e.poses[a:b], None if e.root is None else e.root[a:b], e.params)
+    return replace(clip, motion=motion, encoded=encoded, positions=clip.positions[a:b])
+
+
+def _unit_classes(scan: _FirstPass, units: list[_Unit], reader: ClipReader, settings: Settings, jobs: int,
+                  report: dict) -> list[str]:
+    """The class name of each unit: by path or table, as the first pass named it (a take's segments
+    share its class), or `auto[:K]` from the poses (`classes.auto.auto_classes`, its plan in `report`)."""
+    if scan.classes:
+        return [scan.classes[unit.clip] for unit in units]
+    clips = [unit.load(reader) for unit in units]
+    return auto_classes(clips, parse_auto(settings.classes), settings, jobs=jobs, report=report)
+
+
+def _serialise_clips(interim: dict[str, bytes], coder: str) -> tuple[str, dict[str, bytes]]:
+    """The clip streams as stored, and the coder they use, from the streams as `encode_class`
+    holds them (coded INTERIM_CODER). For "primed" the archive's priors are trained on every
+    clip (in stream order), the clips coded again from them, and the priors stored as the
+    "priors" stream. "auto" takes "primed" when that is smaller, counting the priors (about
+    400 bytes: they pay from roughly 10,000 frames on), else "context"."""
+    if coder == "context":
+        return coder, interim
+    names = sorted(interim)
+
+    def decoded(name: str) -> CodedClip:  # one at a time: the coefficients of all clips may be large
+        return CodedClip.from_payload(interim[name], INTERIM_CODER)
+
+    priors = Priors.train(decoded(name).matrices for name in progress(names, desc="priors", unit="clip"))
+    primed = {name: decoded(name).payload("primed", priors) for name in names}
+    primed["priors"] = encode_bytes(priors.encode())
+    if coder == "primed" or sum(map(len, primed.values())) < sum(map(len, interim.values())):
+        return "primed", primed
+    return "context", interim
+
+
+def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], class_names: list[str],
+                  reader: ClipReader, settings: Settings, writer: ArchiveWriter,
+                  jobs: int) -> tuple[list[dict], dict[str, bytes]]:
+    """Code every class (lossy): add its basis to `writer`, fill in the clips' rows; return the
+    classes' rows in meta and the clip streams as held until `_serialise_clips` (small: coded).
+    A class's clips are forgotten by `reader` once coded; a segmented take's are kept until its
+    segments are joined (`_segmented_take`)."""
+    transform = get_stage("transform", settings.transform)
+    classes_meta, interim = [], {}
+    segments = {}  # unit index -> (class index, basis, payload, error) of a take's segments
+    members_of = [[u for u, c in enumerate(unit_class) if c == name] for name in class_names]
+    frames = [sum(units[u].coded_frames for u in members) for members in members_of]
+    # counted in frames, not classes: one subject is one class, and a bar at 0/1 tells nothing
+    with progress(total=sum(frames), desc="code", unit="frame") as bar:
+        for k, (name, members) in enumerate(zip(class_names, members_of)):
+            clips = ClipsOnDemand([units[u] for u in members], lambda unit: unit.load(reader))
+            basis, payloads, errors, twists = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
+            writer.add(f"class/{k:04d}", basis.encode())
+            classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
+                                 "frames": frames[k]})
+            for u, payload, (mean_err, max_err), twist_flips in zip(members, payloads, errors, twists):
+                unit = units[u]
+                if unit.coded is None:
+                    interim[f"clip/{unit.clip:05d}"] = payload
+                    scan.rows[unit.clip].update(error_cm=mean_err, max_error_cm=max_err)
+                    if twist_flips:
+                        scan.rows[unit.clip]["twist_flips"] = twist_flips
+                    reader.forget([unit.source])
+                else:
+                    segments[u] = (k, basis, payload, (mean_err, max_err))
+            bar.update(frames[k])
+    parts_of = defaultdict(list)  # clip index -> its segments' unit indices
+    for u in segments:
+        parts_of[units[u].clip].append(u)
+    for i, parts in sorted(parts_of.items()):
+        take = [units[u] for u in parts]
+        for name, payload in _segmented_take(scan.rows[i], i, reader.load(scan.sources[i]), take,
+                                             [unit.load(reader) for unit in take], [segments[u] for u in parts],
+                                             transform, settings).items():
+            interim[name] = payload
+        reader.forget([scan.sources[i]])
+    return classes_meta, interim
+
+
+def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit], unit_clips: list[LoadedClip],
+                    coded: list, transform, settings: Settings) -> dict[str, bytes]:
+    """Streams of a take cut into segments; fills its row's `segments`, `segment_overlap`, `class`
+    (the first segment's) and its achieved error, measured on the take joined as `reader.Archive.decode` does.
+
+    `coded`: each segment's (class index, basis, payload, error) from `encode_class`. Every
+    segment met the target on its coded frames, and the crossfade only mixes frames both
+    decode well, so the take nearly always meets it at once; if not, its segments are coded
+    again against a tighter target until it does.
+    """
+    target, dz, coder = settings.error_cm, settings.dead_zone, INTERIM_CODER
+    cores = [(unit.first, unit.frames) for unit in units]
+    payloads, errors = [c[2] for c in coded], [c[3] for c in coded]
+    for _ in range(TIGHTENINGS):
+        decoded = [reconstruct(CodedClip.from_payload(payload, coder, [(unit.coded_frames, c[1].q),
+                                                                       (unit.coded_frames, 4)]),
+                               c[1], transform, dz, unit.coded_frames)
+                   for payload, c, unit in zip(payloads, coded, units)]
+        joined = join_decoded(decoded, cores, clip.motion.n_frames, OVERLAP)
+        (mean_err, max_err), twist_flips = clip.final_check(*joined)
+        if mean_err <= target:
+            break
+        target *= 0.9
+        codes, errors, _ = zip(*(code_clip(unit_clip, c[1], transform, target, dz, settings.split)
+                                 for unit_clip, c in zip(unit_clips, coded)))
+        payloads = [code.payload(coder) for code in codes]
+    else:
+        raise TargetError(f"segments joined to {mean_err:.4f} cm, above {settings.error_cm:g} cm; use a larger -e",
+                          clip.source.amc)
+    streams, segments = {}, []
+    for s, (unit, c, payload, (seg_mean, seg_max)) in enumerate(zip(units, coded, payloads, errors)):
+        name = f"clip/{index:05d}/{s:03d}"
+        streams[name] = payload
+        segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
+                         "error_cm": seg_mean, "max_error_cm": seg_max})
+    row.update(segments=segments, segment_overlap=OVERLAP, error_cm=mean_err, max_error_cm=max_err)
+    if twist_flips:
+        row["twist_flips"] = twist_flips
+    row["class"] = segments[0]["class"]
+    return streams
+
+
+def _clip_row(clip: LoadedClip) -> dict:
+    """A clip's row in meta as far as the clip itself tells (its skeleton, class and errors come later)."""
+    m = clip.motion
+    row = {
+        "path": clip.source.relpath,
+        "frames": m.n_frames,
+        "first_frame": int(m.frame_numbers[0]) if m.n_frames else 1,
+        "header": m.header,
+        "bones": m.bones,
+        "counts": m.counts,
+        "angle_unit": clip.layout.angle_unit,
+        "style": asdict(m.style),  # how the source wrote numbers and lines, to write it back alike
+    }
+    if m.dropped_frames:  # an incomplete last frame left out: the archive says so, not only a warning
+        row["dropped_frames"] = m.dropped_frames
+    return row
+
+

@@ -1,0 +1,3 @@
+"""Getting clips in: which files are clips and which skeleton each pairs with (`discover`), a
+clip loaded in its representation and scored against a decode (`clip`), and `mcz inspect`
+(`inspect`). Parsers of the file formats themselves live in `mocapzip.formats` (formats/)."""
