@@ -84,6 +84,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
       mcz bench ../shared/data/cmu -e 1 -e 0.5 --plot rd.png
       mcz bench clips/ -r channels -r positions -c none -c single --split 0,0.5,0.5 --codec mcz
     """
+    from mocapzip.bench import report as bench_report
     from mocapzip.bench import runner as bench_module
     from mocapzip import progress
 
@@ -101,11 +102,11 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
     if json_path:
         _write(json_path, json.dumps(report, indent=1) + "\n")
     if csv_path:
-        _write(csv_path, bench_module.to_csv(report))
+        _write(csv_path, bench_report.to_csv(report))
     if plot_path:
-        bench_module.plot(report, plot_path)
+        bench_report.plot(report, plot_path)
     if not quiet and json_path != "-" and csv_path != "-":
-        click.echo(bench_module.format_text(report, per_clip=per_clip))
+        click.echo(bench_report.format_text(report, per_clip=per_clip))
 
 
 def _write(path: str, text: str) -> None:
