@@ -52,6 +52,8 @@ class Stage:
     @classmethod
     def from_config(cls, config: dict):
         """Rebuild from `get_config()` output (the "id" entry is optional; other keys must be parameters)."""
+        if config.get("id", cls.codec_id) != cls.codec_id:
+            raise ValueError(f"{cls.kind} {cls.codec_id!r}: config of another stage {config!r}")
         params = {key: value for key, value in config.items() if key != "id"}
         try:
             return cls(**params)
@@ -65,8 +67,17 @@ class Stage:
     def __eq__(self, other) -> bool:
         return type(other) is type(self) and other.get_config() == self.get_config()
 
-    def __hash__(self) -> int:
-        return hash((type(self), repr(self)))
+    def __hash__(self) -> int:  # consistent with ==: equal configs (0.0 and -0.0 too) hash alike
+        return hash((type(self), _frozen(self.get_config())))
+
+
+def _frozen(value):
+    """A config as nested tuples, hashable, equal where the config compares equal."""
+    if isinstance(value, dict):
+        return tuple(sorted((key, _frozen(item)) for key, item in value.items()))
+    if isinstance(value, list):
+        return tuple(_frozen(item) for item in value)
+    return value
 
 
 def register(cls: type) -> type:

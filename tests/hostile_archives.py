@@ -24,7 +24,8 @@ import zstandard
 
 import limited
 from mocapzip.codec.entropy import zstd as entropy
-from mocapzip.codec.entropy.coefficients import encode_matrices
+from mocapzip.codec.clip_stream import CodedClip
+from mocapzip.codec.entropy.coefficients import Priors, encode_matrices
 from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -100,6 +101,13 @@ def _lossless_frames(frames: int) -> Callable[[dict, dict], None]:
         meta["clips"][0]["frames"] = min(frames, meta["clips"][0]["frames"])
 
     return edit
+
+
+def _without_root_track(meta: dict, streams: dict) -> None:
+    """Clip 0's stream re-coded with its pose matrix only, in an archive whose representation has a root track."""
+    priors = Priors.decode(entropy.decode_bytes(streams["priors"]))
+    coded = CodedClip.from_payload(streams["clip/00000"], "primed", priors=priors)
+    streams["clip/00000"] = CodedClip(coded.pose_step, coded.pose_ints, coded.root_step, None).payload("primed", priors)
 
 
 def _zstd_bomb(size: int) -> bytes:
@@ -185,6 +193,9 @@ def cases(watched: Path) -> list[Case]:
         ("unknown_row_field", _set("clips.0.evil", 1), "meta: clips[0]"),
         ("twist_flips_beyond_clip", _set("clips.0.twist_flips", {"rthumb": [0, 10**6]}), "meta: clips[0].twist_flips"),
         ("auto_coder_in_lossy", _set("settings.coefficient_coder", "auto"), "meta: settings.coefficient_coder"),
+        ("format_1_coder_in_format_4", _set("settings.coefficient_coder", "zstd"), "meta: settings.coefficient_coder"),
+        ("no_axes_from_positions", _delete("settings.axes_from_positions"), "meta: settings.axes_from_positions"),
+        ("dead_zone_half", _set("settings.dead_zone", 0.5), "meta: settings.dead_zone"),
         ("segments_without_setting", _set("clips.0.segments", [{"first": 0, "frames": 1, "class": 0, "error_cm": 0,
                                                                 "max_error_cm": 0, "stream": "clip/00000/000"}] * 2),
          "meta: clips[0].segments"),
@@ -199,6 +210,7 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("bone_not_in_skeleton", "lossy", _set("clips.0.bones.1", "tail"), "clip/00000", decoded=True))
     c.append(Case("clip_stream_3_bytes", "lossless", _stream("clip/00000", b"abc"), "clip/00000", decoded=True))
     c.append(Case("class_stream_3_bytes", "lossy", _stream("class/0000", b"abc"), "class/0000", decoded=True))
+    c.append(Case("clip_without_root_track", "lossy", _without_root_track, "clip/00000", decoded=True))
     c.append(Case("priors_3_bytes", "lossy", _stream("priors", b"abc"), "priors", decoded=True))
     c.append(Case("class_basis_of_a_million_pose_values", "lossy", _stream("class/0000", _wide_basis), "clip/00000",
                   decoded=True))

@@ -10,8 +10,8 @@ differently lives here. Nothing here encodes: no path can write an old layout.
 | 2 | class streams hold mean and basis integers, no reference rows (`class_v2`); coder "context" only; no `axes_from_positions` (false) |
 | 3 | no `axes_from_positions` (false: every bone stores its axis) |
 
-The lossless channel code keeps its own version byte (1: formats 1 and 2; 2: format 3 on),
-read by `mocapzip.codec.lossless`.
+The lossless channel code keeps its own layout number in each stream (1: the first format-1
+writers, before the rANS residual coder; 2: every later writer), read by `mocapzip.codec.lossless`.
 """
 
 from __future__ import annotations

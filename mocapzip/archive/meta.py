@@ -87,7 +87,7 @@ _SETTINGS = _record(
         "transform": _TRANSFORM,
         "classes": _STRING,
         "split": {"anyOf": [{"type": "null"}, {"type": "array", "minItems": 3, "maxItems": 3, "items": _ERROR}]},
-        "dead_zone": {"type": "number", "minimum": 0, "maximum": 1},
+        "dead_zone": {"type": "number", "minimum": 0, "maximum": 0.5, "exclusiveMaximum": True},  # as UniformQuantiser
         "basis_precision": _POSITIVE,
         "axis_weight_cm": _POSITIVE,
         "fps": _POSITIVE,

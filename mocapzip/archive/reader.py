@@ -165,7 +165,12 @@ class Archive:
         """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
         basis = self._basis(class_index)
         check_matrix_shape(n_frames, basis.mean.size)  # the decoded poses: bounded before they are made
-        coded = self._decode_clip(self._reader.read(stream), [(n_frames, basis.q), (n_frames, 4)])
+        with_root = self.stages["representation"].has_root_track
+        shapes = [(n_frames, basis.q), (n_frames, 4)][: 2 if with_root else 1]
+        coded = self._decode_clip(self._reader.read(stream), shapes)
+        if (coded.root_ints is not None) != with_root:
+            raise ValueError(f"{'no' if with_root else 'a'} root track matrix, where the representation "
+                             f"{'has' if with_root else 'has none'}")
         return reconstruct(coded, basis, self.stages["transform"], self.settings.dead_zone, n_frames)
 
     def _coded_clip(self, blob: bytes, shapes) -> CodedClip:

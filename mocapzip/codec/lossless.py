@@ -60,7 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapzip.codec.entropy import ans
-from mocapzip.codec.entropy import zstd as entropy
+from mocapzip.codec.entropy import zstd
 from mocapzip.limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import Stage, register
 
@@ -144,18 +144,18 @@ def encode_channels(values) -> bytes:
     exception_positions = np.flatnonzero(exceptions)
     meta = np.concatenate([[_FORMAT_VERSION, n_frames, n_channels], table.ravel()])
     sections = [
-        entropy.encode_ints(meta),
+        zstd.encode_ints(meta),
         _encode_residuals(residuals),
-        entropy.encode_ints(np.diff(exception_positions, prepend=0)),
-        entropy.encode_ints(decimal_bits[exceptions]),
-        entropy.encode_bytes(np.packbits(negative_zero[(coarse == 0) & ~exceptions]).tobytes()),
-        entropy.encode_ints(_pack_links(links)),
+        zstd.encode_ints(np.diff(exception_positions, prepend=0)),
+        zstd.encode_ints(decimal_bits[exceptions]),
+        zstd.encode_bytes(np.packbits(negative_zero[(coarse == 0) & ~exceptions]).tobytes()),
+        zstd.encode_ints(_pack_links(links)),
     ]
     for n in range(1, n_below.max(initial=0) + 1):
         group = n_below == n
         if group.any():
             sections.append(_encode_digits(digits[group], n))
-    return entropy.pack_blobs(sections)
+    return zstd.pack_blobs(sections)
 
 
 def decode_channels(blob: bytes) -> np.ndarray:
@@ -165,16 +165,16 @@ def decode_channels(blob: bytes) -> np.ndarray:
     limits (mocapzip/limits.py), and every section against them, before anything is
     allocated or decoded.
     """
-    sections = entropy.unpack_blobs(blob)
+    sections = zstd.unpack_blobs(blob)
     if len(sections) < 5:
         raise ValueError(f"expected at least 5 sections, got {len(sections)}")
     meta = _int64s(sections[0], 3 + 4 * MAX_VALUES_PER_FRAME)
     if meta.ndim != 1 or meta.size < 3 or meta[0] not in _KNOWN_VERSIONS:
         raise ValueError("not a lossless channel blob of a known version")
     version = int(meta[0])
-    n_frames = entropy.check_size(int(meta[1]), MAX_FRAMES_PER_CLIP, "frames")
-    n_channels = entropy.check_size(int(meta[2]), MAX_VALUES_PER_FRAME, "channels")
-    n_values = entropy.check_size(n_frames * n_channels, MAX_VALUES_PER_CLIP, "values")
+    n_frames = zstd.check_size(int(meta[1]), MAX_FRAMES_PER_CLIP, "frames")
+    n_channels = zstd.check_size(int(meta[2]), MAX_VALUES_PER_FRAME, "channels")
+    n_values = zstd.check_size(n_frames * n_channels, MAX_VALUES_PER_CLIP, "values")
     if meta.size != 3 + 4 * n_channels:
         raise ValueError("channel table does not match the channel count")
     table = meta[3:].reshape(n_channels, 4)
@@ -215,7 +215,7 @@ def decode_channels(blob: bytes) -> np.ndarray:
     exceptions.flat[exception_positions] = True
 
     zero_slots = (coarse == 0) & ~exceptions
-    sign_bits = np.unpackbits(np.frombuffer(entropy.decode_bytes(sections[4], (n_values + 7) // 8), np.uint8))
+    sign_bits = np.unpackbits(np.frombuffer(zstd.decode_bytes(sections[4], (n_values + 7) // 8), np.uint8))
     n_zero_slots = int(zero_slots.sum())
     if sign_bits.size != (n_zero_slots + 7) // 8 * 8 or np.any(sign_bits[n_zero_slots:]):
         raise ValueError("zero sign bits do not match the zero values")
@@ -233,7 +233,7 @@ def decode_channels(blob: bytes) -> np.ndarray:
         if next_section >= len(sections):
             raise ValueError("missing digit section")
         if version == 1:
-            group_digits = entropy.decode_ints(sections[next_section], count)
+            group_digits = zstd.decode_ints(sections[next_section], count)
         else:
             group_digits = _decode_digits(sections[next_section], n, count)
         next_section += 1
@@ -262,7 +262,7 @@ def decode_channels(blob: bytes) -> np.ndarray:
 def _int64s(blob: bytes, max_values: int) -> np.ndarray:
     """A section the encoder writes as int64 (at most `max_values` of them); any other dtype is
     refused, so hostile values cannot overflow the decoder's arithmetic."""
-    values = entropy.decode_ints(blob, max_values)
+    values = zstd.decode_ints(blob, max_values)
     if values.dtype != np.int64:
         raise ValueError(f"expected int64 values, got {values.dtype}")
     return values
@@ -271,7 +271,7 @@ def _int64s(blob: bytes, max_values: int) -> np.ndarray:
 # ------------------------------------------------------------ residual coding (version 2)
 
 _ANS = 1  # residuals: ans.encode_residuals (context-modelled bit lengths, rANS)
-_ZSTD = 0  # digits: entropy.encode_ints
+_ZSTD = 0  # digits: zstd.encode_ints
 _PACKED = 2  # digits: groups packed in binary words (`_pack_decimal`)
 _MAX_PACKED_DIGITS = 18
 _ALWAYS_PACKED = 2  # digit groups of up to this many digits are uniform noise: no zstd try
@@ -280,7 +280,7 @@ _ALWAYS_PACKED = 2  # digit groups of up to this many digits are uniform noise: 
 def _encode_residuals(residuals) -> bytes:
     """Residuals with the rANS coder, behind a one-byte tag for the coder.
 
-    On all AMC files of the shared data set it beats entropy.encode_ints by
+    On all AMC files of the shared data set it beats zstd.encode_ints by
     2-4 % (zstd never won), so zstd is not tried: it would double the time.
     """
     return bytes([_ANS]) + ans.encode_residuals(residuals)
@@ -299,7 +299,7 @@ def _encode_digits(digits, n: int) -> bytes:
     packing several groups into the fewest bits that hold them is within
     0.4 % of their entropy and about 5 % smaller than zstd.
     """
-    candidates = [] if n <= _ALWAYS_PACKED else [bytes([_ZSTD]) + entropy.encode_ints(digits)]
+    candidates = [] if n <= _ALWAYS_PACKED else [bytes([_ZSTD]) + zstd.encode_ints(digits)]
     if n <= _MAX_PACKED_DIGITS:
         packed = _pack_decimal(digits, n)
         candidates.append(bytes([_PACKED]) + zlib.crc32(packed).to_bytes(4, "little") + packed)
@@ -310,7 +310,7 @@ def _decode_digits(blob: bytes, n: int, count: int) -> np.ndarray:
     if not blob:
         raise ValueError("empty digit section")
     if blob[0] == _ZSTD:
-        digits = entropy.decode_ints(blob[1:], count)
+        digits = zstd.decode_ints(blob[1:], count)
         if digits.shape != (count,):
             raise ValueError(f"digit section for n={n} has the wrong length")
     elif blob[0] == _PACKED and n <= _MAX_PACKED_DIGITS:

@@ -59,6 +59,7 @@ def position_columns(model: SkeletonModel) -> int:
 @register
 class Aligned(Representation):
     codec_id = "aligned"
+    has_root_track = True
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         pose = forward(model, motion.values, motion)

@@ -31,6 +31,7 @@ class Representation(Stage):
     axes of bones whose rotation follows from joint positions (`positions.solved_bones`)."""
 
     kind = "representation"
+    has_root_track = False  # the aligned family moves root translation and heading to a track of their own
 
     def __init__(self, axes_from_positions: bool = False):
         self.axes_from_positions = bool(axes_from_positions)

@@ -33,6 +33,7 @@ def rescale_bones(model: SkeletonModel, poses: np.ndarray, factors: np.ndarray) 
 @register
 class Normalised(Representation):
     codec_id = "normalised"
+    has_root_track = True
 
     def __init__(self, axes_from_positions: bool = False):
         super().__init__(axes_from_positions)

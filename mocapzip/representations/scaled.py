@@ -18,6 +18,7 @@ from mocapzip.representations.universal import UNIVERSAL_HEIGHT_CM, skeleton_hei
 @register
 class Scaled(Representation):
     codec_id = "scaled"
+    has_root_track = True
 
     def __init__(self, axes_from_positions: bool = False):
         super().__init__(axes_from_positions)

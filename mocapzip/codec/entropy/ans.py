@@ -33,7 +33,7 @@ import zlib
 
 import numpy as np
 
-from mocapzip.codec.entropy import zstd as entropy
+from mocapzip.codec.entropy import zstd
 from mocapzip.limits import MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 
 __all__ = ["encode_residuals", "decode_residuals"]
@@ -72,7 +72,7 @@ def encode_residuals(matrix) -> bytes:
         raise ValueError("expected a 2-D integer matrix")
     signed = matrix.astype(np.int64)
     codes = ((signed << 1) ^ (signed >> 63)).view(np.uint64)
-    lengths, raw = entropy.split_leading_bits(codes)  # the verbatim bits as entropy.py stores them
+    lengths, raw = zstd.split_leading_bits(codes)  # the verbatim bits as zstd.py stores them
     buckets = lengths.astype(np.int64)
     layout = _Layout(*matrix.shape)
     lanes = layout.to_lanes(buckets)
@@ -80,7 +80,7 @@ def encode_residuals(matrix) -> bytes:
     for scheme in _SCHEMES:
         starts, freqs = _model_pass(lanes, layout, scheme)
         states, words = _rans_encode(starts, freqs, layout)
-        body = entropy.pack_blobs(
+        body = zstd.pack_blobs(
             [bytes([_VERSION, scheme]), states.astype("<u4").tobytes(),
              words.astype("<u2").tobytes(), raw]
         )
@@ -95,13 +95,13 @@ def decode_residuals(blob: bytes, rows: int, steps: int) -> np.ndarray:
     The shape is checked against the limits (rows are channels, steps frames) and against
     what the stream can hold before anything is allocated or decoded.
     """
-    entropy.check_size(rows, MAX_VALUES_PER_FRAME, "residual rows")
-    entropy.check_size(steps, MAX_FRAMES_PER_CLIP, "residual steps")
-    entropy.check_size(rows * steps, MAX_VALUES_PER_CLIP, "residuals")
+    zstd.check_size(rows, MAX_VALUES_PER_FRAME, "residual rows")
+    zstd.check_size(steps, MAX_FRAMES_PER_CLIP, "residual steps")
+    zstd.check_size(rows * steps, MAX_VALUES_PER_CLIP, "residuals")
     blob = bytes(blob)
     if len(blob) < 4 or zlib.crc32(blob[4:]) != int.from_bytes(blob[:4], "little"):
         raise ValueError("CRC mismatch in the residual stream")
-    parts = entropy.unpack_blobs(blob[4:])
+    parts = zstd.unpack_blobs(blob[4:])
     if len(parts) != 4 or len(parts[0]) != 2 or parts[0][0] != _VERSION:
         raise ValueError("not a residual stream of a known version")
     scheme = parts[0][1]
@@ -115,7 +115,7 @@ def decode_residuals(blob: bytes, rows: int, steps: int) -> np.ndarray:
     states = np.frombuffer(parts[1], "<u4").astype(np.int64)
     words = np.frombuffer(parts[2], "<u2").astype(np.int64)
     buckets = layout.from_lanes(_rans_decode(states, words, layout, scheme))
-    codes = entropy.join_leading_bits(buckets, parts[3])
+    codes = zstd.join_leading_bits(buckets, parts[3])
     sign = np.uint64(0) - (codes & np.uint64(1))
     return ((codes >> np.uint64(1)) ^ sign).view(np.int64)
 
