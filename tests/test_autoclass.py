@@ -190,6 +190,7 @@ def test_round_trip_with_auto_classes(short_clips, tmp_path):
     json.dumps(info)  # meta stays JSON
 
 
+@pytest.mark.slow
 def test_segmented_take_decodes_whole_within_target(shared_data, tmp_path):
     """--segment on a real boxing take that PPCA cuts in four: one AMC back with the original's
     frames, the whole take within the target, no jump at the cuts, and (auto:2) several classes."""
@@ -215,6 +216,7 @@ def test_segmented_take_decodes_whole_within_target(shared_data, tmp_path):
         assert errors[cut - 5 : cut + 5].mean() <= 2.0, (cut, errors[cut - 5 : cut + 5])
 
 
+@pytest.mark.slow
 def test_cli_auto_classes_and_segments(shared_data, tmp_path):
     """`mcz compress -c auto --segment` (K chosen by size) and `mcz info` listing what was chosen."""
     from click.testing import CliRunner

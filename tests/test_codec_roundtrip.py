@@ -149,6 +149,7 @@ def test_lossless_cli_is_exact_on_odd_exporters(shared_data, tmp_path):
             assert np.array_equal(a.values, b.values), amc
 
 
+@pytest.mark.slow
 def test_lossless_channel_coding_is_exact_on_every_shared_amc(shared_data):
     files = sorted(p for p in shared_data.rglob("*") if p.suffix.lower() == ".amc")
     assert len(files) > 150

@@ -22,7 +22,6 @@ import signal
 import stat
 import subprocess
 import sys
-import time
 import zlib
 from pathlib import Path
 
@@ -231,9 +230,7 @@ def test_index_that_unpacks_beyond_the_limit_is_refused_before_unpacking(tmp_pat
     index = zeros_frame(size)
     assert len(index) < 100_000  # a bomb: kilobytes stored
     path = with_index(tmp_path, index)
-    started = time.perf_counter()
     assert_index_refused(path, f"unpacks to {size} bytes, more than the limit of {mcz.MAX_INDEX_BYTES}")
-    assert time.perf_counter() - started < 5
 
 
 def test_index_without_its_size_is_refused(tmp_path):
@@ -308,6 +305,7 @@ def file_size_limit(limit: int):
     return apply
 
 
+@pytest.mark.slow
 def test_full_disk_fails_in_one_line_and_leaves_nothing(small_disk, shared_data, tmp_path):
     """Room swept across the spool, the HDF5 writes and HDF5's final flush: each run either writes
     the whole archive or fails in one line (before: a traceback, then a segmentation fault)."""

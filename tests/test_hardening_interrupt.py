@@ -60,6 +60,32 @@ main(prog_name="mcz")
 """
 
 
+# Runs the real `mcz compress`; the first clip coding, in whichever process runs it, creates the
+# marker file and waits for the test's release file (or for the signal, when it runs in the main process).
+CODING_CHILD = r"""
+import os, sys, time
+from pathlib import Path
+from mocapzip.ratecontrol import encode
+from mocapzip.cli.main import main
+
+marker = Path(os.environ["MCZ_TEST_MARKER"])
+real_code_clip = encode.code_clip
+
+def held_code_clip(*args, **kwargs):
+    if not marker.exists():
+        marker.touch()
+        release = marker.with_suffix(".release")
+        for _ in range(6000):
+            if release.exists():
+                break
+            time.sleep(0.01)
+    return real_code_clip(*args, **kwargs)
+
+encode.code_clip = held_code_clip
+main(prog_name="mcz")
+"""
+
+
 def start(args: list, env: dict | None = None) -> subprocess.Popen:
     # SIGINT may be ignored by whatever started the test run (a background job); the child gets Python's default.
     return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
@@ -90,11 +116,22 @@ def wait_for(marker: Path, proc: subprocess.Popen) -> None:
 
 @pytest.mark.parametrize("signum, jobs", [(signal.SIGINT, "1"), (signal.SIGTERM, "2")], ids=["SIGINT", "SIGTERM-j2"])
 def test_compress_of_a_real_folder_interrupted_mid_run(shared_data, tmp_path, signum, jobs):
-    """cmu/09 takes several seconds to compress; the signal comes while the codec (and its workers) work."""
-    proc = start([MCZ, "compress", shared_data / "cmu" / "09", "-o", tmp_path / "db.mcz", "-j", jobs])
-    time.sleep(2.5)  # past start-up (~0.6 s), well before the end (~10 s)
-    interrupt(proc, signum)
-    assert os.listdir(tmp_path) == []
+    """The signal comes while the codec (and, with -j 2, its worker processes) code clips: the child
+    holds its first clip coding until the test has sent it (a state, not a clock)."""
+    out, marker = tmp_path / "out", tmp_path / "marker"
+    out.mkdir()
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    proc = start([sys.executable, "-c", CODING_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz",
+                  "-j", jobs], env)
+    wait_for(marker, proc)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    proc.send_signal(signum)
+    marker.with_suffix(".release").touch()  # a worker process holding its clip may go on
+    _, stderr = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 1, (proc.returncode, stderr)
+    name = signal.Signals(signum).name
+    assert stderr.splitlines() == [f"mcz: error: interrupted ({name}); no partial file was left behind"], stderr
+    assert os.listdir(out) == []
 
 
 @SIGNALS

@@ -34,6 +34,7 @@ def expected(case) -> str:
     return rf"mcz: error: (.*/)?{where}: .*{re.escape(case.problem)}.*"
 
 
+@pytest.mark.slow
 def test_special_and_oversized_inputs_are_refused_in_one_line(specials, tmp_path):
     root, cases = specials
     failures = {}

@@ -17,6 +17,7 @@ import hostile_archives
 CASES = hostile_archives.cases(Path("/placeholder"))  # names only; each test builds its case in its own tree
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", [case.name for case in CASES])
 def test_hostile_archive_is_refused_in_one_line(name, tmp_path):
     case = next(c for c in hostile_archives.cases(tmp_path) if c.name == name)

@@ -252,6 +252,7 @@ def damage_outcomes(tmp_path, variants) -> dict[str, int]:
     return outcomes
 
 
+@pytest.mark.slow
 def test_single_byte_damage_is_detected_or_harmless(tmp_path):
     golden = GOLDEN_NEWEST.read_bytes()
     step = max(1, len(golden) // 2000)  # every byte of today's ~2 KB file; stays < 10 s if it grows

@@ -118,6 +118,7 @@ def test_reference_decoder_decodes_every_golden_file(path, tmp_path):
     check_against_package(path, tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("label", sorted(FRESH))
 def test_reference_decoder_decodes_fresh_archives(fresh_archives, label, tmp_path):
     check_against_package(fresh_archives[label], tmp_path)

@@ -350,9 +350,10 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
         if mean_err <= target:
             break
         target *= 0.9
-        codes, errors, _ = zip(*(code_clip(unit_clip, c[1], transform, target, dz, settings.split)
-                                 for unit_clip, c in zip(unit_clips, coded)))
-        payloads = [code.payload(coder) for code in codes]
+        codings = [code_clip(unit_clip, c[1], transform, target, dz, settings.split)
+                   for unit_clip, c in zip(unit_clips, coded)]
+        payloads = [coding.coded.payload(coder) for coding in codings]
+        errors = [coding.error for coding in codings]
     else:
         raise TargetError(f"segments joined to {mean_err:.4f} cm, above {settings.error_cm:g} cm; use a larger -e",
                           clip.source.amc)

@@ -515,8 +515,8 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
             warnings.simplefilter("ignore")
             loaded = load_clips([clip.source], task["representation"], axes_from_positions=axes_from_positions)[0]
         basis = ClassBasis(np.zeros(loaded.poses.shape[1]), np.eye(loaded.poses.shape[1]), np.ones(loaded.poses.shape[1]))
-        coded, _, twist_flips = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
-        payload = coded.payload()
+        coding = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
+        payload, twist_flips = coding.coded.payload(), coding.twists
         n_frames = loaded.motion.n_frames
         middle = time.perf_counter()
         model, layout, representation = loaded.model, loaded.layout, loaded.representation

@@ -1,6 +1,8 @@
 """Rate control of the lossy codec: per class a PCA basis, per clip a temporal band and the
 largest quantiser step whose decode, scored end to end (`inputs.clip.LoadedClip.error`),
-stays within the error target. The stages it drives live in `mocapzip.codec`.
+stays within the error target. The searches run on cheap proxies of that error
+(`ratecontrol.proxy`), which a few end-to-end scores calibrate. The stages it drives live in
+`mocapzip.codec`.
 
 Why one quantiser step for every coefficient of a clip: the PCA basis and the DCT are
 orthonormal, so a coefficient error of size e costs the same squared pose error
@@ -22,6 +24,8 @@ import os
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -30,7 +34,9 @@ from mocapzip.codec.clip_stream import CodedClip, reconstruct, scale_root
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.ratecontrol.search import largest_step, smallest_count
+from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
+from mocapzip.representations.weighted import joint_position_columns
+from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
 
 ROOT_STEP_RATIO = 0.2
 
@@ -42,6 +48,14 @@ BANDS = (1.0, 0.2, 0.16, 0.13, 0.11, 0.095, 0.08, 0.07, 0.06, 0.05, 0.043, 0.036
 STEP_GUESS = 3.0  # typical step / target (CMU, 1 cm): where the step search starts
 MAX_TRUNCATION_SHARE = 0.85  # a band whose truncation alone costs more of the budget is not tried
 BASIS_REFINEMENTS = 4  # times the basis grid is refined when a clip cannot meet the target
+CALIBRATION_AIM = 0.995  # the proxy searches aim this far under the target ...
+CALIBRATED_LOW = 0.985  # ... and a true error within [CALIBRATED_LOW, 1] x target is taken
+MAX_CALIBRATIONS = 6  # end-to-end scores per clip before the step is tightened instead
+STEP_TOLERANCE = 0.003  # proxy searches find the step to 0.3 % (1 % made the archive 0.6 % larger)
+BAND_RESCALE = 0.03  # a proxy factor this far from the one the band was chosen with: choose it again
+NARROWER_TRIAL = 1.06  # a narrower band whose proxy coding is at most this much larger is tried on true scores
+CANDIDATE_MARGIN = 0.01  # candidate bases estimated within 1 % of the smallest are all coded
+BRACKET = 0.01  # steps 1 % apart, one meeting the target and one not: the search is done
 
 
 class TargetError(MocapFormatError):
@@ -57,14 +71,16 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
     (`LoadedClip.final_check`, for its row).
 
     The budget split is a search: for each candidate PCA share, the class keeps the fewest
-    components that bring every clip's PCA-only error under that share, then each clip gets
-    the largest quantiser step that keeps its end-to-end error under the whole budget. The
-    split with the fewest bytes wins. `settings.split` forces one split instead.
+    components that bring every clip's PCA-only error under that share. Each candidate basis's
+    bytes are estimated, each clip's at the largest step its calibrated proxy allows
+    (`_estimated_sizes`); the clips are coded (`code_clip`) with the candidates estimated
+    within CANDIDATE_MARGIN of the fewest, and the smallest coding wins. `settings.split`
+    forces one split instead.
 
     `clips` may load each clip when indexed (`clip.ClipsOnDemand`): a class need not fit in
-    memory. Each clip is indexed once for the component search and once to be coded with every
-    candidate basis (again only if a basis must be stored finer); `accumulator`, the class's
-    weighted poses when the caller has already summed them, saves one more pass.
+    memory. Each clip is indexed once for the component search, once for the estimates and
+    once per candidate coded (again only if a basis must be stored finer); `accumulator`, the
+    class's weighted poses when the caller has already summed them, saves one more pass.
     """
     if accumulator is None:
         accumulator = CovarianceAccumulator(clips[0].poses.shape[1])
@@ -72,41 +88,54 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
             accumulator.add(clip.poses)
     pca = PcaBasis.fit(accumulator)
     target = settings.error_cm
-    shares = [settings.split[1] / sum(settings.split)] if settings.split else PCA_SHARES
+    shares = _pca_shares(settings)
     _SHARED.update(clips=clips, pca=pca, transform=transform, settings=settings)
+
+    def basis_of(q: int, precision: float) -> ClassBasis:
+        return ClassBasis.quantised(pca.mean, pca.components[:, :q],
+                                    ClassBasis.steps_for(pca.variances[:q], target, precision))
+
     try:
         needed = np.array(_parallel(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
-        # Shares that need the same component count get the same basis and coding: code it once.
+        # Shares that need the same component count get the same basis: estimate it once.
         counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
-        precision = dict.fromkeys(counts, settings.basis_precision)
-        codings = {}  # component count -> (basis, payloads, errors, twists)
-        pending = counts
-        for _ in range(BASIS_REFINEMENTS):
-            steps = [ClassBasis.steps_for(pca.variances[:q], target, precision[q]) for q in pending]
-            bases = _SHARED["bases"] = [ClassBasis.quantised(pca.mean, pca.components[:, :q], step)
-                                        for q, step in zip(pending, steps)]
-            per_clip = _parallel(_code_clip, range(len(clips)), jobs)  # per clip, (payload, error, twists) per basis
-            for b, (q, basis) in enumerate(zip(pending, bases)):
-                payloads, errors, twists = zip(*(codings_of_clip[b] for codings_of_clip in per_clip))
-                codings[q] = (basis, list(payloads), list(errors), list(twists))
-            pending = [q for q in pending if max(e[0] for e in codings[q][2]) > target]
-            if not pending:
-                break
-            for q in pending:
-                precision[q] /= 4  # the rounded basis alone costs too much error: store it finer
-        else:
-            worst, index = max((e[0], i) for q in pending for i, e in enumerate(codings[q][2]))
-            raise TargetError(f"no coding met {target:g} cm (this clip reached {worst:.4f} cm): the target is "
-                              "finer than the precision of the clip's numbers allows; use a larger -e, or --lossless",
-                              clips[index].source.amc)
+        candidates = [basis_of(q, settings.basis_precision) for q in counts]
+        _SHARED["scales"] = [None] * len(clips)
+        if len(candidates) > 1:
+            _SHARED["bases"] = candidates
+            estimates = _parallel(_estimated_sizes, range(len(clips)), jobs)  # per clip: (bytes per basis, factor)
+            totals = [len(b.encode()) + sum(sizes[i] for sizes, _ in estimates) for i, b in enumerate(candidates)]
+            # the estimates rank candidates within about a per cent: those that close are coded for real
+            candidates = [b for b, total in zip(candidates, totals) if total <= (1 + CANDIDATE_MARGIN) * min(totals)]
+            _SHARED["scales"] = [scale for _, scale in estimates]
+        best = None
+        for basis in candidates:  # in share order: on equal sizes the first share wins
+            basis, codings = _coded_with(basis, basis_of, clips, target, settings, jobs)
+            size = len(basis.encode()) + sum(len(payload) for payload, _, _ in codings)
+            if best is None or size < best[0]:
+                best = (size, basis, codings)
+        _, basis, codings = best
     finally:
         _SHARED.clear()
-    best = None
-    for q in counts:  # in share order: on equal sizes the first share wins
-        size = len(codings[q][0].encode()) + sum(map(len, codings[q][1]))
-        if best is None or size < best[0]:
-            best = (size, codings[q])
-    return best[1]
+    payloads, errors, twists = zip(*codings)
+    return basis, list(payloads), list(errors), list(twists)
+
+
+def _coded_with(basis: ClassBasis, basis_of, clips, target: float, settings, jobs: int):
+    """(basis, per clip (payload, error, twists)): every clip coded with `basis`, stored finer
+    (`basis_of(q, precision)`) while some clip cannot meet the target because of its rounding."""
+    precision = settings.basis_precision
+    for _ in range(BASIS_REFINEMENTS):
+        _SHARED["basis"] = basis
+        codings = _parallel(_code_clip, range(len(clips)), jobs)
+        worst, index = max((error[0], i) for i, (_, error, _) in enumerate(codings))
+        if worst <= target:
+            return basis, codings
+        precision /= 4  # the rounded basis alone costs too much error: store it finer
+        basis = basis_of(basis.q, precision)
+    raise TargetError(f"no coding met {target:g} cm (this clip reached {worst:.4f} cm): the target is "
+                      "finer than the precision of the clip's numbers allows; use a larger -e, or --lossless",
+                      clips[index].source.amc)
 
 
 def _parallel(function, items, jobs: int) -> list:
@@ -132,11 +161,15 @@ def _exit_with_parent(parent: int) -> None:
 
 
 def _components_for_shares(index: int) -> list[int]:
-    """For each PCA share, the fewest components that keep this clip's PCA-only error within it."""
+    """For each PCA share, the fewest components that keep this clip's PCA-only error within it
+    (scored end to end on every SEARCH_STRIDE-th frame), found by true scores guided by
+    `proxy.TruncationProxy` (`search.smallest_count_guided`)."""
     clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
     frames = slice(None, None, SEARCH_STRIDE)
     coef = (clip.poses[frames] - pca.mean) @ pca.components
     root = None if clip.root is None else clip.root[frames]
+    columns = joint_position_columns(clip.model, clip.representation_name)
+    proxy = TruncationProxy(clip.poses[frames], pca.mean, pca.components, columns)
     cache: dict[int, float] = {}
 
     def error(q: int) -> float:
@@ -145,79 +178,246 @@ def _components_for_shares(index: int) -> list[int]:
             cache[q] = clip.error(approx, root, frames)[0]
         return cache[q]
 
-    shares = [settings.split[1] / sum(settings.split)] if settings.split else PCA_SHARES
-    return [smallest_count(error, share * settings.error_cm, 0, pca.components.shape[1]) for share in shares]
+    scale, counts = 1.0, []
+    most = pca.components.shape[1]
+    for share in _pca_shares(settings):
+        allowed = share * settings.error_cm
+        count, scale = smallest_count_guided(error, proxy, allowed, 0, most, scale)
+        counts.append(count)
+    return counts
 
 
-def _code_clip(index: int) -> list[tuple[bytes, tuple[float, float], dict]]:
-    """The clip coded with each candidate basis, as (payload, (mean, max) error, twist flips):
-    one load for all."""
+def _pca_shares(settings) -> tuple[float, ...]:
+    return (settings.split[1] / sum(settings.split),) if settings.split else PCA_SHARES
+
+
+def _estimated_sizes(index: int) -> tuple[list[int], float]:
+    """The clip's coded bytes with each candidate basis, as the calibrated proxy predicts them
+    (`_ClipSearch.estimated_size`; one end-to-end score per basis sets its factor: the proxy
+    misses part of the error a basis leaves, so the factor differs between bases)."""
     settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
-    out = []
+    sizes, scale = [], 1.0
     for basis in _SHARED["bases"]:
-        coded, error, twists = code_clip(clip, basis, transform, settings.error_cm, settings.dead_zone,
-                                         settings.split)
-        out.append((coded.payload(), error, twists))
-    return out
+        search = _ClipSearch(clip, basis, transform, settings.error_cm, settings.dead_zone)
+        step, band = search.pick(scale)
+        scale = search.measured_scale(step, band, scale)
+        sizes.append(len(search.code(search.step_for(band, scale, guess=step), band).payload()))
+    return sizes, scale
 
 
-def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None):
+def _code_clip(index: int) -> tuple[bytes, tuple[float, float], dict]:
+    """The clip coded with the class basis: (payload, (mean, max) error, twist flips)."""
+    settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
+    coding = code_clip(clip, _SHARED["basis"], transform, settings.error_cm, settings.dead_zone, settings.split,
+                       _SHARED["scales"][index])
+    return coding.coded.payload(), coding.error, coding.twists
+
+
+@dataclass
+class ClipCoding:
+    """What `code_clip` chose, and what it measured on the way."""
+
+    coded: CodedClip
+    error: tuple[float, float]  # achieved (mean, max) joint error, cm, every frame as written
+    twists: dict  # twist flips for the clip's row (`LoadedClip.final_check`)
+    proxy_scale: float | None  # true error / proxy error last measured (None: not measured)
+    checks: int  # end-to-end scores run (sampled or whole)
+
+
+def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None,
+              proxy_scale: float | None = None) -> ClipCoding:
     """The smallest coding of this clip within `target`, verified on every frame.
 
     Two knobs are searched: the quantiser step, and the band, the share of the temporal
     coefficients (lowest frequencies first) the clip keeps at all. Dropping the top of the
     band costs some error, paid for by a finer step, but high-frequency coefficients are
-    isolated and expensive to code, so a narrower band is often smaller overall. For each
-    band (widest first) the largest step within `target` is found and the coded size
-    measured; the search stops when a band cannot meet the target or sizes stop falling.
+    isolated and expensive to code, so a narrower band is often smaller overall.
 
-    Returns the coded clip, its achieved (mean, max) error and its twist flips (for its row,
-    `LoadedClip.final_check`). `split` (R, P, T shares)
-    forces the root track's share of the budget and keeps the whole band (the thesis's
-    experiments); otherwise the root step is ROOT_STEP_RATIO of the pose step.
+    The searches run on `proxy.CodingProxy` times a factor, the ratio of true to proxy error
+    last measured (`proxy_scale`, e.g. from another basis for the same clip; 1 at first), and
+    true end-to-end scores only calibrate and verify (`_ClipSearch`): a few per clip instead of
+    one per step tried. The coding returned has been checked on every frame as written
+    (`LoadedClip.final_check`).
+
+    `split` (R, P, T shares) forces the root track's share of the budget and keeps the whole
+    band (the thesis's experiments; searched on end-to-end scores); otherwise the root step is
+    ROOT_STEP_RATIO of the pose step.
     """
-    n = clip.motion.n_frames
-    pose_coef = transform.forward(basis.project(clip.poses))
-    root_coef = None if clip.root is None else transform.forward(scale_root(clip.root))
-    sample = slice(None, None, max(1, min(SEARCH_STRIDE, n // 256)))  # short clips: every frame
+    search = _ClipSearch(clip, basis, transform, target, dz)
+    if split and search.root_coef is not None:
+        return search.split(split)
+    return search.smallest(proxy_scale or 1.0)
 
-    def code(pose_step: float, root_step: float, band: float = 1.0) -> CodedClip:
-        pose_step, root_step = float(np.float32(pose_step)), float(np.float32(root_step))  # as stored
-        pose_ints = UniformQuantiser(pose_step, dz).quantise(pose_coef)
-        root_ints = None if root_coef is None else UniformQuantiser(root_step, dz).quantise(root_coef)
-        kept = math.ceil(band * n)
+
+class _ClipSearch:
+    """One clip against one basis: its coefficients, codings of them, and their scores."""
+
+    def __init__(self, clip, basis: ClassBasis, transform, target: float, dz: float):
+        self.clip, self.basis, self.transform, self.target, self.dz = clip, basis, transform, target, dz
+        self.n = clip.motion.n_frames
+        self.projected = basis.project(clip.poses)
+        self.pose_coef = transform.forward(self.projected)
+        self.root_coef = None if clip.root is None else transform.forward(scale_root(clip.root))
+        self.sample = slice(None, None, max(1, min(SEARCH_STRIDE, self.n // 256)))  # short clips: every frame
+        self.checks = 0
+
+    def code(self, step: float, band: float = 1.0, root_step: float | None = None) -> CodedClip:
+        """The coefficients quantised with `step` (the root track's with `root_step`, by default
+        ROOT_STEP_RATIO of it), rows past the band zeroed."""
+        root_step = step * ROOT_STEP_RATIO if root_step is None else root_step
+        pose_step, root_step = float(np.float32(step)), float(np.float32(root_step))  # as stored
+        pose_ints = UniformQuantiser(pose_step, self.dz).quantise(self.pose_coef)
+        root_ints = None if self.root_coef is None else UniformQuantiser(root_step, self.dz).quantise(self.root_coef)
+        kept = math.ceil(band * self.n)
         pose_ints[kept:] = 0
         if root_ints is not None:
             root_ints[kept:] = 0
         return CodedClip(pose_step, pose_ints, root_step, root_ints)
 
-    def error(pose_step: float, root_step: float, band: float = 1.0, exact: str | None = None) -> float:
-        poses, root = reconstruct(code(pose_step, root_step, band), basis, transform, dz, n, sample)
+    def sampled_error(self, coded: CodedClip, exact: str | None = None) -> float:
+        """End-to-end mean error on the sampled frames; `exact` keeps "poses" or "root" original."""
+        self.checks += 1
+        poses, root = reconstruct(coded, self.basis, self.transform, self.dz, self.n, self.sample)
         if exact == "poses":
-            poses = clip.poses[sample]
+            poses = self.clip.poses[self.sample]
         elif exact == "root":
-            root = clip.root[sample]
-        return clip.error(poses, root, sample)[0]
+            root = self.clip.root[self.sample]
+        return self.clip.error(poses, root, self.sample)[0]
 
-    if split and root_coef is not None:
+    def final(self, coded: CodedClip, scale: float | None = None) -> ClipCoding:
+        """`coded` scored on every frame as written."""
+        self.checks += 1
+        achieved, twists = self.clip.final_check(*reconstruct(coded, self.basis, self.transform, self.dz, self.n))
+        return ClipCoding(coded, achieved, twists, scale, self.checks)
+
+    def tightened(self, coding: ClipCoding, band: float) -> ClipCoding:
+        """Finer codings (steps 10 % smaller each time) until one meets the target on every frame or
+        the finest step is reached: the last resort when the searches missed."""
+        while coding.error[0] > self.target and coding.coded.pose_step > STEP_RANGE[0]:
+            coding = self.final(self.code(coding.coded.pose_step * 0.9, band, coding.coded.root_step * 0.9),
+                                coding.proxy_scale)
+        return coding
+
+    def split(self, split) -> ClipCoding:
+        """Root and pose steps searched apart on end-to-end scores, the root's within its share."""
         r_share = split[0] / sum(split)
-        root_step, _ = largest_step(lambda s: error(1.0, s, exact="poses"), r_share * target, *STEP_RANGE)
-        pose_step, _ = largest_step(lambda s: error(s, 1.0, exact="root"), (1 - r_share) * target, *STEP_RANGE)
-        band = 1.0
-    else:  # the root step follows the pose step
-        pose_step, band = _smallest_over_bands(lambda step, band: code(step, step * ROOT_STEP_RATIO, band),
-                                               lambda step, band: error(step, step * ROOT_STEP_RATIO, band), target)
-        root_step = pose_step * ROOT_STEP_RATIO
-    coded = code(pose_step, root_step, band)
-    achieved, twists = clip.final_check(*reconstruct(coded, basis, transform, dz, n))
-    while achieved[0] > target and coded.pose_step > STEP_RANGE[0]:  # the sampled search missed: tighten
-        coded = code(coded.pose_step * 0.9, coded.root_step * 0.9, band)
-        achieved, twists = clip.final_check(*reconstruct(coded, basis, transform, dz, n))
-    return coded, achieved, twists
+        root_step, _ = largest_step(lambda s: self.sampled_error(self.code(1.0, root_step=s), exact="poses"),
+                                    r_share * self.target, *STEP_RANGE)
+        pose_step, _ = largest_step(lambda s: self.sampled_error(self.code(s, root_step=1.0), exact="root"),
+                                    (1 - r_share) * self.target, *STEP_RANGE)
+        return self.tightened(self.final(self.code(pose_step, root_step=root_step)), 1.0)
+
+    @cached_property
+    def proxy(self) -> CodingProxy:
+        clip = self.clip
+        columns = joint_position_columns(clip.model, clip.representation_name)
+        character = None if clip.root is None else (clip.poses[:, columns].reshape(self.n, -1, 3), clip.root[:, 3])
+        return CodingProxy(self.pose_coef, self.root_coef, self.basis.components, columns,
+                           clip.poses - self.basis.reconstruct(self.projected), self.transform, self.dz, character,
+                           self.sample)
+
+    def predicted(self, step: float, band: float, scale: float) -> float:
+        return scale * self.proxy(step, step * ROOT_STEP_RATIO, band)
+
+    def step_for(self, band: float, scale: float, guess: float | None = None) -> float:
+        """The largest step whose predicted error meets the aim, at `band`."""
+        step, _ = largest_step(lambda s: self.predicted(s, band, scale), CALIBRATION_AIM * self.target, *STEP_RANGE,
+                               rel_tol=STEP_TOLERANCE, guess=guess)
+        return step
+
+    def pick(self, scale: float) -> tuple[float, float]:
+        """(step, band) of the smallest coding whose predicted error meets the aim."""
+        return _smallest_over_bands(lambda step, band: self.code(step, band),
+                                    lambda step, band: self.predicted(step, band, scale), CALIBRATION_AIM * self.target)
+
+    def measured_scale(self, step: float, band: float, scale: float) -> float:
+        """The proxy factor measured by one end-to-end score (sampled) of the coding at `step`, `band`."""
+        coded = self.code(step, band)
+        measured, predicted = self.sampled_error(coded), self.proxy(coded.pose_step, coded.root_step, band)
+        return measured / predicted if measured > 0 and predicted > 0 else scale
+
+    def smallest(self, scale: float) -> ClipCoding:
+        """The band and step by the proxy, then calibrated (`calibrate`). The proxy's error differs a
+        little between bands, so the band is chosen again if the factor moved, and narrower bands
+        (which the proxy slightly overstates) are tried on true scores while they come out smaller."""
+        step, band = self.pick(scale)
+        best = self.calibrate(step, band, scale)
+        if abs(best.proxy_scale / scale - 1) > BAND_RESCALE:
+            step, other = self.pick(best.proxy_scale)
+            if other != band:
+                candidate = self.calibrate(step, other, best.proxy_scale)
+                if self._smaller(best, candidate) is candidate:
+                    best, band = candidate, other
+        index = BANDS.index(band)
+        while index + 1 < len(BANDS) and best.error[0] <= self.target:
+            narrower, scale = BANDS[index + 1], best.proxy_scale
+            if self.predicted(STEP_RANGE[0], narrower, scale) > MAX_TRUNCATION_SHARE * self.target:
+                break
+            step = self.step_for(narrower, scale)
+            if len(self.code(step, narrower).payload()) > NARROWER_TRIAL * len(best.coded.payload()):
+                break
+            candidate = self.calibrate(step, narrower, scale)
+            if self._smaller(best, candidate) is best:
+                break
+            best, index = candidate, index + 1
+        best.checks = self.checks
+        return best
+
+    def _smaller(self, a: ClipCoding, b: ClipCoding) -> ClipCoding:
+        """The smaller of two codings that meet the target (else the one that does)."""
+        if (a.error[0] <= self.target) != (b.error[0] <= self.target):
+            return a if a.error[0] <= self.target else b
+        return a if len(a.coded.payload()) <= len(b.coded.payload()) else b
+
+    def calibrate(self, step: float, band: float, scale: float) -> ClipCoding:
+        """The coarsest coding at `band` that meets the target on every frame, starting at `step`.
+
+        Each trial is scored end to end, the proxy factor updated from the score, and the step
+        searched again on the rescaled proxy, until the true error lands within
+        [CALIBRATED_LOW, 1] x target or two steps BRACKET apart straddle it. Long clips calibrate
+        on the sampled frames first, then on every frame as written.
+        """
+        whole = self.sample.step == 1  # the sample is every frame: calibrate as written at once
+        best = coding = None  # the coarsest coding that met the target on every frame; the last one scored
+        passed = failed = None  # the coarsest step known to meet the target, the finest known to miss it
+        for _ in range(MAX_CALIBRATIONS):
+            coded = self.code(step, band)
+            if whole:
+                coding = self.final(coded, scale)
+                measured = coding.error[0]
+                if measured <= self.target and (best is None or coded.pose_step > best.coded.pose_step):
+                    best = coding
+            else:
+                measured = self.sampled_error(coded)
+            predicted = self.proxy(coded.pose_step, coded.root_step, band)
+            if predicted > 0 and measured > 0:
+                scale = measured / predicted
+            if measured <= self.target:
+                passed = step if passed is None else max(passed, step)
+            else:
+                failed = step if failed is None else min(failed, step)
+            settled = failed is not None and passed is not None and failed <= passed * (1 + BRACKET)
+            close = measured <= self.target and (measured >= CALIBRATED_LOW * self.target or step >= STEP_RANGE[1])
+            if settled or close:
+                if whole:
+                    break
+                whole, step, passed, failed = True, passed, None, None  # calibrated on the sample: now every frame
+                continue
+            step = self.step_for(band, scale, guess=step)
+            if failed is not None and step >= failed:  # the proxy, even rescaled, disagrees: bisect
+                step = math.sqrt(passed * failed) if passed is not None else failed * (1 - BRACKET)
+            elif passed is not None and step <= passed:
+                step = math.sqrt(passed * failed) if failed is not None else passed * (1 + BRACKET)
+        if best is not None:
+            best.proxy_scale, best.checks = scale, self.checks
+            return best
+        if coding is None or coding.coded.pose_step != float(np.float32(step)):
+            coding = self.final(self.code(step, band), scale)
+        return self.tightened(coding, band)
 
 
 def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
-    """(step, band) of the smallest coding within `target` on the sampled frames (see code_clip);
+    """(step, band) of the smallest coding whose `error` is within `target` (see code_clip);
     `code` and `error` take (step, band).
 
     The error of dropping a band's top alone (finest step) is cheap to score, so bands whose
@@ -240,7 +440,7 @@ def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
     best, best_size = None, None
     low, high, guess = *STEP_RANGE, STEP_GUESS * target
     for band in BANDS[narrowest::-1]:
-        step, err = largest_step(lambda s: error(s, band), target, low, high, guess=guess)
+        step, err = largest_step(lambda s: error(s, band), target, low, high, rel_tol=STEP_TOLERANCE, guess=guess)
         if err > target:
             break
         size = len(code(step, band).payload())

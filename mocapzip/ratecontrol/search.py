@@ -23,6 +23,36 @@ def smallest_count(error_at: Callable[[int], float], target: float, lo: int, hi:
     return hi
 
 
+def smallest_count_guided(error_at: Callable[[int], float], proxy: Callable[[int], float], target: float,
+                          lo: int, hi: int, scale: float = 1.0) -> tuple[int, float]:
+    """`smallest_count`, guided by a cheap `proxy` of the error: each guess is the smallest count
+    whose proxy, times the ratio error / proxy last measured, meets the target, kept inside the
+    bracket the true scores so far allow. A right guess costs two scores (the count and the one
+    below it). Returns (count, the ratio last measured)."""
+    passed, failed = None, None  # smallest count known to meet the target, largest known to miss it
+
+    def guess() -> int:
+        count = smallest_count(lambda n: scale * proxy(n), target, lo, hi)
+        low = lo if failed is None else failed + 1
+        high = hi if passed is None else passed - 1
+        return min(max(count, low), high)
+
+    count = guess()
+    while True:
+        error = error_at(count)
+        if error <= target:
+            passed = count
+        else:
+            failed = count
+        if passed is not None and (passed == lo or failed == passed - 1):
+            return passed, scale
+        if failed == hi:
+            return hi, scale
+        if proxy(count) > 0 and error > 0:
+            scale = error / proxy(count)
+        count = guess()
+
+
 def largest_step(error_at: Callable[[float], float], target: float, lo: float, hi: float,
                  rel_tol: float = 0.02, max_iter: int = 30, guess: float | None = None) -> tuple[float, float]:
     """Largest quantiser step in [lo, hi] whose error is <= target, by bisection in log space.

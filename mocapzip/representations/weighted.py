@@ -20,9 +20,16 @@ def pose_weights(model: SkeletonModel, representation_name: str, width: int, axi
     """
     weights = np.ones(width)
     if representation_name != "channels":
-        n_positions = 3 * model.n_joints if representation_name == "positions" else 3 * (model.n_joints - 1)
-        weights[n_positions:] = axis_weight_cm
+        weights[joint_position_columns(model, representation_name).stop:] = axis_weight_cm
     return weights
+
+
+def joint_position_columns(model: SkeletonModel, representation_name: str) -> slice:
+    """The pose columns that hold joint positions (cm): the first 3 per joint stored by the
+    marker representations; none for channels."""
+    if representation_name == "channels":
+        return slice(0, 0)
+    return slice(0, 3 * model.n_joints if representation_name == "positions" else 3 * (model.n_joints - 1))
 
 
 def skeleton_params(model: SkeletonModel, representation: Representation, layout: ChannelLayout) -> dict:

@@ -1,0 +1,126 @@
+"""Compress and decompress speed of mcz beside xz and zstd, on the same files in the same run.
+
+    python benchmarks/speed.py [--data ../shared/data] [--set cmu] [--json speed.json]
+
+mcz compresses the folder `$DATA/SET` (every clip within 1 cm) into one archive and decompresses
+it back to ASF/AMC files, with `-j 1` and `-j 2`; the first `-j 1` run starts with an empty
+compiled-code cache (`NUMBA_CACHE_DIR` in a new folder: the cold start a fresh install pays once),
+the others reuse it (warm). xz -9, xz -d, zstd -19 and zstd -3 compress and decompress the same
+files, packed into one uncompressed tar first (not timed), single-threaded as their defaults.
+Every run is a child process: its time is wall time including interpreter start-up, its memory
+the child's peak RSS (wait4). Speeds are frames/s and MB/s of AMC text (ASF text included in
+the bytes), and ratios against xz -9 (or xz -d) measured in this run. The load average is
+recorded before and after: other work on the machine slows every row alike, not the ratios.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import os
+import shutil
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+
+from mocapzip.bench.runner import run_measured
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = REPO.parent / "shared" / "data"
+
+
+def mcz(*args: str) -> list[str]:
+    return [sys.executable, "-c", "from mocapzip.cli.main import main; main()", *args]
+
+
+def measured(name: str, argv: list[str], env: dict | None = None, stdin: Path | None = None,
+             stdout: Path | None = None, log=print) -> dict:
+    """Run one command (stdin/stdout redirected to files when given): its wall seconds and peak RSS."""
+    if stdin is not None or stdout is not None:
+        argv = ["sh", "-c", " ".join(argv) + (f" < '{stdin}'" if stdin else "") + (f" > '{stdout}'" if stdout else "")]
+    result = run_measured(argv, env=env, echo=log)
+    if result["returncode"] != 0:
+        raise SystemExit(f"{name}: exit {result['returncode']}: {' '.join(result['stderr'][-3:])}")
+    log(f"{name}: {result['seconds']:.2f} s, peak RSS {result['peak_rss_mb']:.0f} MB")
+    return {"name": name, "seconds": result["seconds"], "peak_rss_mb": result["peak_rss_mb"]}
+
+
+def run(data: Path, subset: str, log=print) -> dict:
+    from mocapzip.archive import info
+    from mocapzip.inputs.discover import find_clips
+
+    folder = data / subset
+    sources = find_clips([folder])
+    files = sorted({s.amc for s in sources} | {s.asf for s in sources})
+    megabytes = sum(f.stat().st_size for f in files) / 1e6
+    load_start = os.getloadavg()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        archive = tmp / "set.mcz"
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba-cache")}  # empty at first: a cold start
+        for label, jobs in (("mcz compress -j 1, cold start", 1), ("mcz compress -j 1", 1), ("mcz compress -j 2", 2)):
+            argv = mcz("compress", str(folder), "-o", str(archive), "-f", "-q", "-j", str(jobs))
+            rows.append(measured(label, argv, env, log=log))
+        frames, archive_bytes = info(archive)["frames"], archive.stat().st_size
+        for label in ("mcz decompress", "mcz decompress, again"):
+            out = tmp / "out"
+            shutil.rmtree(out, ignore_errors=True)
+            rows.append(measured(label, mcz("decompress", str(archive), "-o", str(out), "-q"), env, log=log))
+
+        packed = tmp / "set.tar"
+        buffer = io.BytesIO()
+        with tarfile.open(fileobj=buffer, mode="w") as tar:
+            for f in files:
+                tar.add(f, arcname=str(f.relative_to(folder)))
+        packed.write_bytes(buffer.getvalue())
+        sizes = {"mcz -e 1": archive_bytes}
+        for name, compress, decompress in (("xz -9", ["xz", "-9", "-T1", "-c"], ["xz", "-d", "-T1", "-c"]),
+                                           ("zstd -19", ["zstd", "-19", "-q", "-c"], ["zstd", "-d", "-q", "-c"]),
+                                           ("zstd -3", ["zstd", "-3", "-q", "-c"], ["zstd", "-d", "-q", "-c"])):
+            squeezed = tmp / "set.tar.x"
+            rows.append(measured(name, compress, stdin=packed, stdout=squeezed, log=log))
+            sizes[name] = squeezed.stat().st_size
+            rows.append(measured(f"{name} decompress", decompress, stdin=squeezed, stdout=tmp / "set.back", log=log))
+    times = {row["name"]: row["seconds"] for row in rows}
+    for row in rows:
+        row["frames_per_second"] = frames / row["seconds"]
+        row["mb_per_second"] = megabytes / row["seconds"]
+        row["vs_xz"] = times["xz -9 decompress" if "decompress" in row["name"] else "xz -9"] / row["seconds"]
+    return {"set": f"$DATA/{subset}", "clips": len(sources), "frames": frames, "megabytes": megabytes,
+            "bytes": sizes, "rows": rows, "cpus": os.cpu_count(),
+            "load_average_start": load_start, "load_average_end": os.getloadavg()}
+
+
+def markdown(report: dict) -> str:
+    lines = [f"`python benchmarks/speed.py` on {report['set']} ({report['clips']} clips, {report['frames']:,} frames, "
+             f"{report['megabytes']:.1f} MB of ASF/AMC text; {report['cpus']} CPUs, load average "
+             f"{report['load_average_start'][0]:.1f} at start, {report['load_average_end'][0]:.1f} at end). Times are "
+             "wall times of child processes, interpreter start-up included; x xz is xz -9's time (xz -d's for "
+             "decompression) over this row's, measured in the same run.", "",
+             "| run | seconds | frames/s | MB/s | x xz | peak RSS (MB) |", "|---|---:|---:|---:|---:|---:|"]
+    for row in report["rows"]:
+        lines.append(f"| {row['name']} | {row['seconds']:.2f} | {row['frames_per_second']:,.0f} | "
+                     f"{row['mb_per_second']:.1f} | {row['vs_xz']:.2f} | {row['peak_rss_mb']:.0f} |")
+    sizes = ", ".join(f"{name} {size:,} B" for name, size in report["bytes"].items())
+    lines += ["", f"Sizes: {sizes}."]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=DATA)
+    parser.add_argument("--set", default="cmu", help="folder under --data to compress (default: cmu)")
+    parser.add_argument("--json", type=Path, help="also write the report as JSON here")
+    args = parser.parse_args(argv)
+    report = run(args.data, args.set, log=lambda m: print(m, file=sys.stderr, flush=True))
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1))
+    print(markdown(report))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,108 @@
+"""Cheap stand-ins for the end-to-end error, which the rate control calibrates per clip.
+
+The end-to-end error of a coding (decode, channels, forward kinematics, joint distances) costs
+tens of microseconds per frame, and a step search needs it for every step and band it tries.
+The error of the coefficients themselves costs a few operations per coefficient, and in the
+codec's weighted pose space it *is* the pose error: the temporal transforms are orthonormal and
+the class basis nearly so, so the squared error of the coefficients is the squared error of the
+weighted poses (Parseval). The proxies here turn it into a root-mean-square joint error in cm.
+That is not the promised mean joint error (the decoder's inverse kinematics, the root track and
+the distribution of the errors all come between), but it moves with it: the ratio of the two is
+nearly constant for a clip, so a factor measured by one true check carries over to the next
+step (`ratecontrol.encode.code_clip`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mocapzip.codec.clip_stream import unscale_root
+from mocapzip.codec.quantise import UniformQuantiser
+from mocapzip.motion.rotations import axis_rotation
+
+
+class TruncationProxy:
+    """Mean joint error (cm), in the representation, of keeping the first q components of an
+    orthonormal basis (`joint_errors`). The root track is kept exactly, as PCA leaves it."""
+
+    def __init__(self, poses: np.ndarray, mean: np.ndarray, components: np.ndarray, columns: slice):
+        self._centred = poses - mean
+        self._coef = self._centred @ components
+        self._components, self._columns = components, columns
+
+    def __call__(self, q: int) -> float:
+        error = self._centred - self._coef[:, :q] @ self._components[:, :q].T
+        return float(joint_errors(error, self._columns).mean())
+
+
+def joint_errors(error: np.ndarray, columns: slice, shift: np.ndarray | None = None) -> np.ndarray:
+    """Per frame and joint, the size of a weighted pose error (frames x columns): its position
+    columns (`columns`, 3 per joint, plus `shift`, frames x joints x 3, if given), and the
+    weighted bone-axis columns after them spread evenly over the joints (an axis error of e
+    moves a joint by about e: that is what their weight means). With no position columns
+    (channels), one size per frame: the norm of the whole error."""
+    positions = error[:, columns].reshape(len(error), -1, 3)
+    if shift is not None:
+        positions = positions + shift
+    rest = (error[:, columns.stop:] ** 2).sum(axis=1, keepdims=True)
+    if positions.shape[1] == 0:
+        return np.sqrt(rest)
+    return np.sqrt((positions**2).sum(axis=2) + rest / positions.shape[1])
+
+
+class CodingProxy:
+    """Mean joint error (cm) of a clip coded at a quantiser step and band, measured in the representation.
+
+    `pose_coef`: the temporal coefficients (`transform`) of the clip's basis coefficients (frames x
+    Q); `root_coef`: those of its scaled root track (frames x 4) or None; `basis`: the class basis
+    (columns x Q); `columns`: its position columns (`weighted.joint_position_columns`); `residual`: the
+    pose error the basis leaves before any quantisation (frames x columns); `character`: for
+    representations with a root track, the clip's joint positions in the character frame (frames
+    x joints x 3, cm) and its heading (frames, radians). `frames`: the frames measured.
+
+    The error is the coefficients' error taken back through the inverse transform and the basis,
+    so a band's dropped events and the quantiser's noise land on the joints and frames they hit
+    (`joint_errors`). The root track's error is added as vectors, linearised (the translation,
+    plus the heading error times each joint's lever arm about the vertical): both lose the same
+    fast events, and in the world their errors largely cancel. What is left out (inverse
+    kinematics, the rounding of the written text) the calibration absorbs.
+    """
+
+    def __init__(self, pose_coef: np.ndarray, root_coef: np.ndarray | None, basis: np.ndarray, columns: slice,
+                 residual: np.ndarray, transform, dead_zone: float,
+                 character: tuple[np.ndarray, np.ndarray] | None = None, frames=slice(None)):
+        self.pose_coef, self.root_coef, self.dead_zone = pose_coef, root_coef, dead_zone
+        self.transform, self.basis, self.columns, self.frames = transform, basis, columns, frames
+        self.n_frames = len(pose_coef)
+        self._residual = residual[frames]
+        if root_coef is not None:
+            local, heading = character
+            # a heading error d moves a joint at p (character frame) by d * p @ TURN, where TURN is
+            # d/d(angle) of the rotation about +Y at 0 (axis_rotation at 90 degrees, minus its fixed axis)
+            turn = axis_rotation("y", np.pi / 2) - np.diag([0.0, 1.0, 0.0])
+            self._lever = local[frames] @ turn
+            self._to_character = np.swapaxes(axis_rotation("y", heading[frames]), -1, -2)
+
+    def kept_rows(self, band: float) -> int:
+        """Rows a band keeps (as `code_clip` zeroes the rest)."""
+        return math.ceil(band * self.n_frames)
+
+    def __call__(self, pose_step: float, root_step: float, band: float = 1.0) -> float:
+        kept = self.kept_rows(band)
+        error = self._residual + self._curve_error(self.pose_coef, pose_step, kept) @ self.basis.T
+        if self.root_coef is None:
+            return float(joint_errors(error, self.columns).mean())
+        root = unscale_root(self._curve_error(self.root_coef, root_step, kept))
+        shift = root[:, None, :3] @ self._to_character  # the root's translation error, character frame
+        joints = joint_errors(error, self.columns, shift + root[:, 3, None, None] * self._lever)
+        root_joint = np.sqrt((shift**2).sum(axis=2))
+        return float((joints.sum() + root_joint.sum()) / (joints.size + root_joint.size))
+
+    def _curve_error(self, coef: np.ndarray, step: float, kept: int) -> np.ndarray:
+        """original - decoded of the curves at the measured frames."""
+        quantiser = UniformQuantiser(step, self.dead_zone)
+        error = coef.copy()
+        error[:kept] -= quantiser.dequantise(quantiser.quantise(coef[:kept]))
+        return self.transform.inverse(error, self.n_frames)[self.frames]
