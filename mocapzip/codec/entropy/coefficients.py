@@ -34,12 +34,26 @@ every clip's models start from it, adapting more slowly (shift 5).  Clips
 still decode on their own, given the archive's priors.  The gain is largest
 for short clips; `python benchmarks/coder_priors.py` measures it on the shared
 CMU set.
+
+Speed.  The coder runs for every clip and class basis an archive writes or
+reads (and several times per clip while the error search tries steps), and
+Priors.train runs it over every clip once more.  In pure Python it made a
+decision in about half a microsecond, 25-40x slower than now: the matrix loops
+below and the range coder under them are compiled with numba (`numba.njit`),
+so models are int64 arrays and the contexts come from arrays of neighbour
+magnitudes.  The compiled code is cached on disk (`cache=True`), so only the
+first run after an install or an edit compiles it (a few seconds).  What
+compiled code does badly (formatted errors, input checks, stream headers)
+stays in Python around it: `_decode_matrix` returns what went wrong and
+`decode_matrices` raises it.
 """
 
+import numba
 import numpy as np
 
 from mocapzip.codec.entropy.zstd import ByteReader, check_size, write_varint
-from mocapzip.codec.entropy.rangecoder import Decoder, Encoder, new_models
+from mocapzip.codec.entropy.rangecoder import (Decoder, Encoder, decode_bit, decode_direct, encode_bit, encode_direct,
+                                              exhausted, new_models, reserve)
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import Stage, register
 
@@ -58,10 +72,13 @@ _LARGEST = 1 << 62  # magnitudes stay below this, as UniformQuantiser's do
 _MAX_LENGTH = 62  # bit length of the largest magnitude
 _LENGTH_CONTEXTS = 16  # unary steps of the bit length with a model of their own
 _END_BITS = 6  # the bit length of a column's end is coded with a 6-bit tree (0..63)
+_MOST_DECISIONS = 128  # more than one value (1 + 61 + 1 + 60 + 1) or one column end (6 + 1 + 61) codes
+_ROWS_PER_RESERVE = 256  # the encoder's buffer is grown, if need be, before every so many rows
+_CONTEXT_CAP = 1 << (_NEIGHBOUR_CONTEXTS - 1)  # neighbour magnitudes summing to this or more share the top context
 
 
 class _Models:
-    """The adaptive models of one matrix."""
+    """The adaptive models of one matrix, one int64 array per kind of decision."""
 
     _KINDS = ("zero", "length", "below_leading", "end_length", "end_below")
 
@@ -72,15 +89,19 @@ class _Models:
         self.end_length = new_models(1 << _END_BITS)
         self.end_below = new_models(1 << _END_BITS)
 
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """The model arrays in `_KINDS` order, as the compiled coder unpacks them."""
+        return tuple(getattr(self, kind) for kind in self._KINDS)
+
     def state(self) -> list[int]:
-        return [p for kind in self._KINDS for p in getattr(self, kind)]
+        return np.concatenate(self.arrays()).tolist()
 
     @classmethod
     def from_state(cls, state: list[int]) -> "_Models":
         models, position = cls(), 0
         for kind in cls._KINDS:
             size = len(getattr(models, kind))
-            setattr(models, kind, list(state[position : position + size]))
+            setattr(models, kind, np.array(state[position : position + size], np.int64))
             position += size
         return models
 
@@ -103,12 +124,12 @@ class Priors:
     def train(cls, streams) -> "Priors":
         """`streams`: lists of matrices as `encode_matrices` takes them (slot i trains models i)."""
         models: list[_Models] = []
-        encoder = Encoder(_TRAINING_SHIFT)  # its output is thrown away: only the models' adaptation matters
         for matrices in streams:
+            encoder = Encoder(_TRAINING_SHIFT)  # its output is thrown away: only the models' adaptation matters
             for slot, matrix in enumerate(matrices):
                 if slot == len(models):
                     models.append(_Models())
-                _encode_matrix(encoder, np.asarray(matrix, np.int64), models[slot])
+                encoder.out = _encode_matrix(encoder.state, encoder.out, _int64_matrix(matrix), models[slot].arrays())
         return cls.decode(cls([m.state() for m in models]).encode())
 
     def encode(self) -> bytes:
@@ -180,14 +201,11 @@ def encode_matrices(matrices, priors: Priors | None = None) -> bytes:
     encoder = Encoder() if priors is None else Encoder(_PRIMED_SHIFT)
     header = bytearray([_VERSION if priors is None else _PRIMED_VERSION, len(matrices)])
     for slot, matrix in enumerate(matrices):
-        matrix = np.asarray(matrix)
-        if matrix.ndim != 2 or matrix.dtype.kind not in "iu":
-            raise ValueError("expected 2-D integer matrices")
-        if not np.all((matrix > -_LARGEST) & (matrix < _LARGEST)):
-            raise ValueError("coefficients must be below 2**62 in magnitude")
+        matrix = _int64_matrix(matrix)
         for size in matrix.shape:
             write_varint(header, size)
-        _encode_matrix(encoder, matrix.astype(np.int64), _Models() if priors is None else priors.models(slot))
+        models = _Models() if priors is None else priors.models(slot)
+        encoder.out = _encode_matrix(encoder.state, encoder.out, matrix, models.arrays())
     return bytes(header) + encoder.finish()
 
 
@@ -206,8 +224,15 @@ def decode_matrices(blob: bytes, shapes=None, priors: Priors | None = None) -> l
         raise ValueError(f"coefficient matrices of shapes {stored}, expected {list(shapes)}")
     payload = reader.take(reader.remaining())
     decoder = Decoder(payload) if version == _VERSION else Decoder(payload, _PRIMED_SHIFT)
-    matrices = [_decode_matrix(decoder, rows, columns, _Models() if version == _VERSION else priors.models(slot))
-                for slot, (rows, columns) in enumerate(stored)]
+    matrices = []
+    for slot, (rows, columns) in enumerate(stored):
+        models = _Models() if version == _VERSION else priors.models(slot)
+        matrix = np.zeros((rows, columns), np.int64)
+        bad_column, bad_end = _decode_matrix(decoder.state, decoder.data, matrix, models.arrays())
+        decoder.check_not_exhausted()
+        if bad_column >= 0:
+            raise ValueError(f"column {bad_column} ends at row {bad_end} of {rows}")
+        matrices.append(matrix)
     decoder.finish()
     return matrices
 
@@ -243,111 +268,163 @@ def _read_header(reader: ByteReader) -> tuple[int, list[tuple[int, int]]]:
     return version, shapes
 
 
-def _context(current: list, previous: list, before: list, row: int) -> int:
+def _int64_matrix(matrix) -> np.ndarray:
+    """`matrix` as the C-ordered int64 array the compiled coder takes; refused if it cannot be coded
+    (the compiled code does no bounds checks: magnitudes index models by their bit length)."""
+    matrix = np.asarray(matrix)
+    if matrix.ndim != 2 or matrix.dtype.kind not in "iu":
+        raise ValueError("expected 2-D integer matrices")
+    if not np.all((matrix > -_LARGEST) & (matrix < _LARGEST)):
+        raise ValueError("coefficients must be below 2**62 in magnitude")
+    return np.ascontiguousarray(matrix, np.int64)
+
+
+# --------------------------------------------------------------------------- compiled coding (numba)
+#
+# Each column's magnitudes are kept for the contexts of the next two columns: `magnitudes` holds
+# three rows (this column and the two before it, in turn by column % 3), one entry longer than the
+# matrix so `row + 1` needs no check, zero past each column's end.  They are capped at
+# `_CONTEXT_CAP`: the context only asks whether the weighted sum reaches it (2**62 magnitudes
+# would overflow int64 when summed).
+
+
+@numba.njit(cache=True)
+def _bit_length(value):
+    length = 0
+    while value:
+        value >>= 1
+        length += 1
+    return length
+
+
+@numba.njit(cache=True)
+def _neighbour_magnitudes(magnitudes, ends, column):
+    """The rows of `magnitudes` for `column` and the two columns before it; the first cleared
+    of what column - 3 left there (`ends`: the ends of the last three columns)."""
+    current = magnitudes[column % 3]
+    current[: ends[column % 3]] = 0
+    return current, magnitudes[(column + 2) % 3], magnitudes[(column + 1) % 3]
+
+
+@numba.njit(cache=True)
+def _context(current, previous, before, row):
     """Bit length of the weighted magnitude of the already-coded neighbours, capped.
 
     `current` holds this column's magnitudes above `row`; `previous` and `before` the two
-    columns to the left, up to their ends (rows past a column's end are zero).
+    columns to the left.
     """
-    near = 0
+    near = previous[row] + previous[row + 1] + before[row]
     if row >= 1:
-        near += 2 * current[row - 1]
+        near += 2 * current[row - 1] + previous[row - 1]
     if row >= 2:
         near += current[row - 2]
-    if row < len(previous):
-        near += previous[row]
-    if 1 <= row <= len(previous):
-        near += previous[row - 1]
-    if row + 1 < len(previous):
-        near += previous[row + 1]
-    if row < len(before):
-        near += before[row]
-    return min(near.bit_length(), _NEIGHBOUR_CONTEXTS - 1)
+    return min(_bit_length(near), _NEIGHBOUR_CONTEXTS - 1)
 
 
-def _encode_matrix(encoder: Encoder, matrix: np.ndarray, models: _Models) -> None:
-    previous, before = [], []
-    for column in matrix.T:
-        nonzero = np.flatnonzero(column)
-        end = int(nonzero[-1]) + 1 if nonzero.size else 0
-        _encode_end(encoder, models, end)
-        values = column[:end].tolist()
-        current = [abs(value) for value in values]
-        for row, value in enumerate(values):
-            context = _context(current, previous, before, row)
-            distance = min((end - 1 - row).bit_length(), _DISTANCE_CONTEXTS - 1)
-            if distance:  # the last row is known to be non-zero
-                encoder.bit(models.zero, context * _DISTANCE_CONTEXTS + distance, value != 0)
-                if value == 0:
-                    continue
-            magnitude = current[row]
-            length = magnitude.bit_length()
-            for step in range(1, length):
-                encoder.bit(models.length, context * _LENGTH_CONTEXTS + min(step, _LENGTH_CONTEXTS - 1), 1)
-            if length < _MAX_LENGTH:
-                encoder.bit(models.length, context * _LENGTH_CONTEXTS + min(length, _LENGTH_CONTEXTS - 1), 0)
-            _encode_below_leading(encoder, models.below_leading, magnitude, length)
-            encoder.direct(value < 0, 1)
-        previous, before = current, previous
-
-
-def _decode_matrix(decoder: Decoder, rows: int, columns: int, models: _Models) -> np.ndarray:
-    matrix = np.zeros((rows, columns), np.int64)
-    previous, before = [], []
+@numba.njit(cache=True)
+def _encode_matrix(state, out, matrix, models):
+    """Code `matrix` (int64, rows x columns); returns the encoder's buffer, grown if it had to be."""
+    zero, length_models, below_leading, end_length, end_below = models
+    rows, columns = matrix.shape
+    magnitudes = np.zeros((3, rows + 1), np.int64)
+    ends = np.zeros(3, np.int64)
     for column in range(columns):
-        end = _decode_end(decoder, models)
+        current, previous, before = _neighbour_magnitudes(magnitudes, ends, column)
+        end = rows
+        while end and matrix[end - 1, column] == 0:
+            end -= 1
+        ends[column % 3] = end
+        out = reserve(state, out, _MOST_DECISIONS)
+        _encode_end(state, out, end_length, end_below, end)
+        for first_row in range(0, end, _ROWS_PER_RESERVE):
+            out = reserve(state, out, _ROWS_PER_RESERVE * _MOST_DECISIONS)
+            for row in range(first_row, min(first_row + _ROWS_PER_RESERVE, end)):
+                value = matrix[row, column]
+                magnitude = abs(value)
+                current[row] = min(magnitude, _CONTEXT_CAP)
+                context = _context(current, previous, before, row)
+                distance = min(_bit_length(end - 1 - row), _DISTANCE_CONTEXTS - 1)
+                if distance:  # the last row is known to be non-zero
+                    encode_bit(state, out, zero, context * _DISTANCE_CONTEXTS + distance, value != 0)
+                    if value == 0:
+                        continue
+                length = _bit_length(magnitude)
+                lengths = context * _LENGTH_CONTEXTS  # the models of this context's unary steps
+                for step in range(1, length):
+                    encode_bit(state, out, length_models, lengths + min(step, _LENGTH_CONTEXTS - 1), 1)
+                if length < _MAX_LENGTH:
+                    encode_bit(state, out, length_models, lengths + min(length, _LENGTH_CONTEXTS - 1), 0)
+                _encode_below_leading(state, out, below_leading, magnitude, length)
+                encode_direct(state, out, 1 if value < 0 else 0, 1)
+    return out
+
+
+@numba.njit(cache=True)
+def _decode_matrix(state, data, matrix, models):
+    """Fill the zero `matrix` (rows x columns); returns (-1, 0), or (column, end) for the first
+    column whose end lies past the last row.  Returns early when the stream is exhausted."""
+    zero, length_models, below_leading, end_length, end_below = models
+    rows, columns = matrix.shape
+    magnitudes = np.zeros((3, rows + 1), np.int64)
+    ends = np.zeros(3, np.int64)
+    for column in range(columns):
+        current, previous, before = _neighbour_magnitudes(magnitudes, ends, column)
+        end = _decode_end(state, data, end_length, end_below)
+        if exhausted(state):
+            return -1, 0
         if end > rows:
-            raise ValueError(f"column {column} ends at row {end} of {rows}")
-        current, signs = [0] * end, [False] * end
+            return column, end
+        ends[column % 3] = end
         for row in range(end):
             context = _context(current, previous, before, row)
-            distance = min((end - 1 - row).bit_length(), _DISTANCE_CONTEXTS - 1)
-            if distance and not decoder.bit(models.zero, context * _DISTANCE_CONTEXTS + distance):
+            distance = min(_bit_length(end - 1 - row), _DISTANCE_CONTEXTS - 1)
+            if distance and not decode_bit(state, data, zero, context * _DISTANCE_CONTEXTS + distance):
                 continue
             length = 1
-            while length < _MAX_LENGTH and decoder.bit(
-                models.length, context * _LENGTH_CONTEXTS + min(length, _LENGTH_CONTEXTS - 1)
-            ):
+            lengths = context * _LENGTH_CONTEXTS
+            while length < _MAX_LENGTH and decode_bit(state, data, length_models,
+                                                      lengths + min(length, _LENGTH_CONTEXTS - 1)):
                 length += 1
-            magnitude = _decode_below_leading(decoder, models.below_leading, length)
-            current[row] = magnitude
-            signs[row] = decoder.direct(1) == 1
-        if end:
-            matrix[:end, column] = np.where(signs, -np.array(current, np.int64), current)
-        previous, before = current, previous
-    return matrix
+            magnitude = _decode_below_leading(state, data, below_leading, length)
+            current[row] = min(magnitude, _CONTEXT_CAP)
+            matrix[row, column] = -magnitude if decode_direct(state, data, 1) else magnitude
+    return -1, 0
 
 
-def _encode_end(encoder: Encoder, models: _Models, end: int) -> None:
+@numba.njit(cache=True)
+def _encode_end(state, out, end_length, end_below, end):
     """A column's end: its bit length through a binary tree, then the bits below the leading one."""
-    length = end.bit_length()
+    length = _bit_length(end)
     node = 1
     for shift in range(_END_BITS - 1, -1, -1):
         bit = (length >> shift) & 1
-        encoder.bit(models.end_length, node, bit)
+        encode_bit(state, out, end_length, node, bit)
         node = (node << 1) | bit
-    _encode_below_leading(encoder, models.end_below, end, length)
+    _encode_below_leading(state, out, end_below, end, length)
 
 
-def _decode_end(decoder: Decoder, models: _Models) -> int:
+@numba.njit(cache=True)
+def _decode_end(state, data, end_length, end_below):
     node = 1
     for _ in range(_END_BITS):
-        node = (node << 1) | decoder.bit(models.end_length, node)
+        node = (node << 1) | decode_bit(state, data, end_length, node)
     length = node - (1 << _END_BITS)
-    return _decode_below_leading(decoder, models.end_below, length) if length else 0
+    return _decode_below_leading(state, data, end_below, length) if length else 0
 
 
-def _encode_below_leading(encoder: Encoder, models: list, value: int, length: int) -> None:
+@numba.njit(cache=True)
+def _encode_below_leading(state, out, models, value, length):
     """The bits of `value` (bit length `length`) below its leading one: the first modelled
     per length (it is skewed for the decaying magnitudes coded here), the rest direct."""
     if length >= 2:
-        encoder.bit(models, length, (value >> (length - 2)) & 1)
-        encoder.direct(value, length - 2)
+        encode_bit(state, out, models, length, (value >> (length - 2)) & 1)
+        encode_direct(state, out, value, length - 2)
 
 
-def _decode_below_leading(decoder: Decoder, models: list, length: int) -> int:
+@numba.njit(cache=True)
+def _decode_below_leading(state, data, models, length):
     """The value of bit length `length` >= 1 whose lower bits `_encode_below_leading` wrote."""
     if length < 2:
         return 1
-    value = (2 | decoder.bit(models, length)) << (length - 2)
-    return value | decoder.direct(length - 2)
+    value = (2 | decode_bit(state, data, models, length)) << (length - 2)
+    return value | decode_direct(state, data, length - 2)

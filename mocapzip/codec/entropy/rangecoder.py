@@ -8,131 +8,241 @@ its own for random access.
 
 Each model is an 11-bit probability that the next bit is 0, moved 1/2**shift
 of the way towards each coded bit: shift 4 (fast) for models that start at
-1/2, 5 for models that start from trained priors (`coefficients.Priors`).  `Encoder.bit` and `Decoder.bit` take the
-model array and an index into it, so callers keep one array per kind of
-decision.  Bits known to be near 50/50 (signs, low bits of magnitudes) go
-through `direct`, which costs exactly one bit.
+1/2, 5 for models that start from trained priors (`coefficients.Priors`).
+`encode_bit` and `decode_bit` take the model array and an index into it, so
+callers keep one array per kind of decision.  Bits known to be near 50/50
+(signs, low bits of magnitudes) go through `encode_direct`/`decode_direct`,
+which cost exactly one bit.
 
 Integer arithmetic only: encoder and decoder agree bit for bit everywhere.
 The encoder's first output byte is always 0 and is not stored.
+
+Why numba: the coder runs for every clip, class basis and priors table, a
+few million decisions per archive, several times over while the encoder
+searches for its steps.  In pure Python a decision took about half a
+microsecond and profiles showed the coder as a hot spot; compiled with numba
+(`numba.njit`), it is 25-40x faster.  So the coder's state lives in small
+int64 arrays (the slots below) rather than in Python objects, models are
+int64 arrays, and the encoder writes into a byte array that callers grow
+with `reserve` before coding.  `encode_bit` and `encode_direct` are inlined
+into their compiled callers (`inline="always"`): left to LLVM they were not,
+and the encoder was 20 % slower.  Compiled code is cached on disk
+(`cache=True`, next to the sources in __pycache__), so only the first run
+after an install or an edit compiles (a few seconds).  numba's cache does
+not notice an edit of this file in the compiled code of `coefficients`,
+which holds its own copy of these functions: after changing them, delete
+the cache files (`find mocapzip -name '*.nb[ic]' -delete`).
+
+`Encoder` and `Decoder` hold that state for callers in Python: `coefficients`
+passes it on to its compiled loops; `bit` and `direct` code one decision.
 """
 
-__all__ = ["Encoder", "Decoder", "new_models"]
+import numba
+import numpy as np
+
+__all__ = ["Encoder", "Decoder", "new_models", "reserve", "encode_bit", "encode_direct", "decode_bit", "decode_direct",
+           "exhausted"]
 
 _PROB_BITS = 11
 _ONE = 1 << _PROB_BITS
 FAST_SHIFT = 4  # adaptation rate of models that start at 1/2: fast, because a clip's streams are short
 _TOP = 1 << 24
 _MASK32 = 0xFFFFFFFF
+# A modelled bit leaves the range at least 2**24 >> 11 (models stay within 1..2047), so at most two
+# bytes move out before it is back above 2**24; a direct bit halves it, so at most one.
+_MOST_BYTES_PER_DECISION = 2
+
+# Encoder state slots: low can exceed 32 bits by one carry, which int64 holds.
+_LOW, _RANGE, _CACHE, _PENDING, _SIZE, _ENCODER_SHIFT = range(6)
+# Decoder state slots; `_EXHAUSTED` is set when a byte is needed past the end of the stream.
+_CODE, _DECODER_RANGE, _POSITION, _DECODER_SHIFT, _EXHAUSTED = range(5)
 
 
-def new_models(count: int) -> list[int]:
+def new_models(count: int) -> np.ndarray:
     """`count` fresh models, each at probability 1/2."""
-    return [_ONE >> 1] * count
+    return np.full(count, _ONE >> 1, np.int64)
+
+
+# --------------------------------------------------------------------------- encoding
+
+
+@numba.njit(cache=True)
+def reserve(state, out, decisions):
+    """`out`, or a larger copy of it, with room for all that `decisions` more decisions can write
+    (the held-back bytes plus `_MOST_BYTES_PER_DECISION` each).  Callers reserve before coding."""
+    needed = state[_SIZE] + state[_PENDING] + _MOST_BYTES_PER_DECISION * decisions
+    if needed <= out.size:
+        return out
+    grown = np.empty(max(needed, 2 * out.size), np.uint8)
+    grown[: state[_SIZE]] = out[: state[_SIZE]]
+    return grown
+
+
+@numba.njit(cache=True, inline="always")
+def encode_bit(state, out, models, index, bit):
+    p = models[index]
+    bound = (state[_RANGE] >> _PROB_BITS) * p
+    if bit:
+        state[_LOW] += bound
+        state[_RANGE] -= bound
+        models[index] = p - (p >> state[_ENCODER_SHIFT])
+    else:
+        state[_RANGE] = bound
+        models[index] = p + ((_ONE - p) >> state[_ENCODER_SHIFT])
+    while state[_RANGE] < _TOP:
+        state[_RANGE] <<= 8
+        _shift_low(state, out)
+
+
+@numba.njit(cache=True, inline="always")
+def encode_direct(state, out, value, n_bits):
+    """The low `n_bits` of `value`, most significant first, at one bit each."""
+    for shift in range(n_bits - 1, -1, -1):
+        state[_RANGE] >>= 1
+        if (value >> shift) & 1:
+            state[_LOW] += state[_RANGE]
+        while state[_RANGE] < _TOP:
+            state[_RANGE] <<= 8
+            _shift_low(state, out)
+
+
+@numba.njit(cache=True)
+def _shift_low(state, out):
+    low = state[_LOW]
+    if low < 0xFF000000 or low > _MASK32:
+        carry = low >> 32
+        byte = state[_CACHE]
+        while state[_PENDING]:
+            out[state[_SIZE]] = (byte + carry) & 0xFF
+            state[_SIZE] += 1
+            byte = 0xFF
+            state[_PENDING] -= 1
+        state[_CACHE] = (low >> 24) & 0xFF
+    state[_PENDING] += 1
+    state[_LOW] = (low & 0x00FFFFFF) << 8
+
+
+@numba.njit(cache=True)
+def _finish_encoding(state, out):
+    """Flush the encoder; returns the buffer (maybe grown), whose bytes 1..state[_SIZE] are the stream."""
+    out = reserve(state, out, 5)  # five decisions' room: more than five flushed bytes need
+    for _ in range(5):
+        _shift_low(state, out)
+    return out
 
 
 class Encoder:
-    def __init__(self, shift: int = FAST_SHIFT):
-        self._adaptation = shift
-        self._low = 0
-        self._range = _MASK32
-        self._cache = 0
-        self._pending = 1  # bytes held back until a carry can no longer change them
-        self._out = bytearray()
+    """The encoder's state slots and output buffer (`out`, replaced when it grows).  Compiled
+    callers take both and return the buffer they ended with; `bit` and `direct` code one decision."""
 
-    def bit(self, models: list[int], index: int, bit: int) -> None:
-        p = models[index]
-        bound = (self._range >> _PROB_BITS) * p
-        if bit:
-            self._low += bound
-            self._range -= bound
-            models[index] = p - (p >> self._adaptation)
-        else:
-            self._range = bound
-            models[index] = p + ((_ONE - p) >> self._adaptation)
-        while self._range < _TOP:
-            self._range <<= 8
-            self._shift_low()
+    def __init__(self, shift: int = FAST_SHIFT):
+        self.state = np.zeros(6, np.int64)
+        self.state[_RANGE] = _MASK32
+        self.state[_PENDING] = 1  # bytes held back until a carry can no longer change them (the first: 0)
+        self.state[_ENCODER_SHIFT] = shift
+        self.out = np.empty(1024, np.uint8)
+
+    def bit(self, models: np.ndarray, index: int, bit: int) -> None:
+        self.out = reserve(self.state, self.out, 1)
+        encode_bit(self.state, self.out, models, index, bit)
 
     def direct(self, value: int, n_bits: int) -> None:
         """The low `n_bits` of `value`, most significant first, at one bit each."""
-        for shift in range(n_bits - 1, -1, -1):
-            self._range >>= 1
-            if (value >> shift) & 1:
-                self._low += self._range
-            while self._range < _TOP:
-                self._range <<= 8
-                self._shift_low()
-
-    def _shift_low(self) -> None:
-        if self._low < 0xFF000000 or self._low > _MASK32:
-            carry = self._low >> 32
-            byte = self._cache
-            while self._pending:
-                self._out.append((byte + carry) & 0xFF)
-                byte = 0xFF
-                self._pending -= 1
-            self._cache = (self._low >> 24) & 0xFF
-        self._pending += 1
-        self._low = (self._low & 0x00FFFFFF) << 8
+        self.out = reserve(self.state, self.out, n_bits)
+        encode_direct(self.state, self.out, value, n_bits)
 
     def finish(self) -> bytes:
-        for _ in range(5):
-            self._shift_low()
-        return bytes(self._out[1:])  # the first byte is always 0
+        self.out = _finish_encoding(self.state, self.out)
+        return self.out[1 : self.state[_SIZE]].tobytes()  # the first byte is always 0
+
+
+# --------------------------------------------------------------------------- decoding
+
+
+@numba.njit(cache=True)
+def _normalise(state, data):
+    while state[_DECODER_RANGE] < _TOP:
+        state[_DECODER_RANGE] <<= 8
+        if state[_POSITION] < data.size:
+            byte = data[state[_POSITION]]
+            state[_POSITION] += 1
+        else:  # the caller checks `_EXHAUSTED` before acting on what was decoded
+            state[_EXHAUSTED] = 1
+            byte = 0
+        # Only a stream starting FF FF FF FF has code >= range; every bit then decodes as 1 up to
+        # an error.  The min keeps its code within int64 (and still >= range) while that lasts.
+        state[_CODE] = min((state[_CODE] << 8) | byte, state[_DECODER_RANGE])
+
+
+@numba.njit(cache=True)
+def decode_bit(state, data, models, index):
+    p = models[index]
+    bound = (state[_DECODER_RANGE] >> _PROB_BITS) * p
+    if state[_CODE] < bound:
+        state[_DECODER_RANGE] = bound
+        models[index] = p + ((_ONE - p) >> state[_DECODER_SHIFT])
+        bit = 0
+    else:
+        state[_CODE] -= bound
+        state[_DECODER_RANGE] -= bound
+        models[index] = p - (p >> state[_DECODER_SHIFT])
+        bit = 1
+    _normalise(state, data)
+    return bit
+
+
+@numba.njit(cache=True)
+def decode_direct(state, data, n_bits):
+    value = 0
+    for _ in range(n_bits):
+        state[_DECODER_RANGE] >>= 1
+        bit = 0
+        if state[_CODE] >= state[_DECODER_RANGE]:
+            state[_CODE] -= state[_DECODER_RANGE]
+            bit = 1
+        value = (value << 1) | bit
+        _normalise(state, data)
+    return value
+
+
+@numba.njit(cache=True)
+def exhausted(state):
+    """Whether the decoder needed a byte past the end of its stream (what it decoded since is void)."""
+    return state[_EXHAUSTED] != 0
 
 
 class Decoder:
-    """Reads what `Encoder` wrote; `finish` checks that exactly all bytes were used."""
+    """Reads what `Encoder` wrote.  Compiled callers take the state slots and `data` and stop at
+    `exhausted`; their caller then raises through `check_not_exhausted`.  `finish` checks that
+    exactly all bytes were used."""
 
     def __init__(self, data: bytes, shift: int = FAST_SHIFT):
-        self._adaptation = shift
-        self._data = b"\x00" + bytes(data)
-        if len(self._data) < 5:
+        if len(data) < 4:
             raise ValueError("range-coded stream shorter than its 4-byte minimum")
-        self._code = int.from_bytes(self._data[1:5], "big")
-        self._pos = 5
-        self._range = _MASK32
+        self.data = np.frombuffer(bytes(data), np.uint8)
+        self.state = np.zeros(5, np.int64)
+        self.state[_CODE] = int.from_bytes(data[:4], "big")
+        self.state[_DECODER_RANGE] = _MASK32
+        self.state[_POSITION] = 4
+        self.state[_DECODER_SHIFT] = shift
 
-    def _next_byte(self) -> int:
-        if self._pos >= len(self._data):
-            raise ValueError("range-coded stream ends early")
-        byte = self._data[self._pos]
-        self._pos += 1
-        return byte
-
-    def bit(self, models: list[int], index: int) -> int:
-        p = models[index]
-        bound = (self._range >> _PROB_BITS) * p
-        if self._code < bound:
-            self._range = bound
-            models[index] = p + ((_ONE - p) >> self._adaptation)
-            bit = 0
-        else:
-            self._code -= bound
-            self._range -= bound
-            models[index] = p - (p >> self._adaptation)
-            bit = 1
-        while self._range < _TOP:
-            self._range <<= 8
-            self._code = (self._code << 8) | self._next_byte()
+    def bit(self, models: np.ndarray, index: int) -> int:
+        bit = decode_bit(self.state, self.data, models, index)
+        self.check_not_exhausted()
         return bit
 
     def direct(self, n_bits: int) -> int:
-        value = 0
-        for _ in range(n_bits):
-            self._range >>= 1
-            bit = self._code >= self._range
-            if bit:
-                self._code -= self._range
-            value = (value << 1) | bit
-            while self._range < _TOP:
-                self._range <<= 8
-                self._code = (self._code << 8) | self._next_byte()
+        value = decode_direct(self.state, self.data, n_bits)
+        self.check_not_exhausted()
         return value
 
+    def check_not_exhausted(self) -> None:
+        if self.state[_EXHAUSTED]:
+            raise ValueError("range-coded stream ends early")
+
     def finish(self) -> None:
-        if self._pos != len(self._data):
-            raise ValueError(f"{len(self._data) - self._pos} unexpected bytes after the range-coded stream")
-        if self._code >= self._range:
+        self.check_not_exhausted()
+        if self.state[_POSITION] != self.data.size:
+            raise ValueError(f"{self.data.size - self.state[_POSITION]} unexpected bytes after the range-coded stream")
+        if self.state[_CODE] >= self.state[_DECODER_RANGE]:
             raise ValueError("range-coded stream is inconsistent at its end")
