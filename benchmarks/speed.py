@@ -8,7 +8,7 @@ compiled-code cache (`NUMBA_CACHE_DIR` in a new folder: the cold start a fresh i
 the others reuse it (warm). xz -9, xz -d, zstd -19 and zstd -3 compress and decompress the same
 files, packed into one uncompressed tar first (not timed), single-threaded as their defaults.
 Every run is a child process: its time is wall time including interpreter start-up, its memory
-the child's peak RSS (wait4). Speeds are frames/s and MB/s of AMC text (ASF text included in
+the child's peak RSS (GNU time, /usr/bin/time). Speeds are frames/s and MB/s of AMC text (ASF text included in
 the bytes), and ratios against xz -9 (or xz -d) measured in this run. The load average is
 recorded before and after: other work on the machine slows every row alike, not the ratios.
 """
@@ -29,6 +29,7 @@ from mocapzip.bench.runner import run_measured
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
+TIME = "/usr/bin/time"  # GNU time (Debian package `time`): the children's peak RSS
 
 
 def mcz(*args: str) -> list[str]:
@@ -37,14 +38,22 @@ def mcz(*args: str) -> list[str]:
 
 def measured(name: str, argv: list[str], env: dict | None = None, stdin: Path | None = None,
              stdout: Path | None = None, log=print) -> dict:
-    """Run one command (stdin/stdout redirected to files when given): its wall seconds and peak RSS."""
-    if stdin is not None or stdout is not None:
-        argv = ["sh", "-c", " ".join(argv) + (f" < '{stdin}'" if stdin else "") + (f" > '{stdout}'" if stdout else "")]
-    result = run_measured(argv, env=env, echo=log)
-    if result["returncode"] != 0:
-        raise SystemExit(f"{name}: exit {result['returncode']}: {' '.join(result['stderr'][-3:])}")
-    log(f"{name}: {result['seconds']:.2f} s, peak RSS {result['peak_rss_mb']:.0f} MB")
-    return {"name": name, "seconds": result["seconds"], "peak_rss_mb": result["peak_rss_mb"]}
+    """Run one command (stdin/stdout redirected to files when given): its wall seconds and peak RSS.
+
+    The peak RSS comes from GNU time run in between: a child forked straight from this (large)
+    Python process would report this process's size as its own peak (Linux keeps the high-water
+    mark across exec), which hides the small baselines' real memory."""
+    with tempfile.NamedTemporaryFile("r") as rss:
+        argv = [TIME, "-f", "%M", "-o", rss.name, *argv]
+        if stdin is not None or stdout is not None:
+            argv = ["sh", "-c", " ".join(f"'{a}'" for a in argv) + (f" < '{stdin}'" if stdin else "")
+                    + (f" > '{stdout}'" if stdout else "")]
+        result = run_measured(argv, env=env, echo=log)
+        if result["returncode"] != 0:
+            raise SystemExit(f"{name}: exit {result['returncode']}: {' '.join(result['stderr'][-3:])}")
+        peak_mb = int(rss.read().split()[-1]) / 1024
+    log(f"{name}: {result['seconds']:.2f} s, peak RSS {peak_mb:.0f} MB")
+    return {"name": name, "seconds": result["seconds"], "peak_rss_mb": peak_mb}
 
 
 def run(data: Path, subset: str, log=print) -> dict:
