@@ -16,7 +16,6 @@ recorded before and after: other work on the machine slows every row alike, not 
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import os
 import shutil
@@ -80,11 +79,9 @@ def run(data: Path, subset: str, log=print) -> dict:
             rows.append(measured(label, mcz("decompress", str(archive), "-o", str(out), "-q"), env, log=log))
 
         packed = tmp / "set.tar"
-        buffer = io.BytesIO()
-        with tarfile.open(fileobj=buffer, mode="w") as tar:
+        with tarfile.open(packed, "w") as tar:
             for f in files:
                 tar.add(f, arcname=str(f.relative_to(folder)))
-        packed.write_bytes(buffer.getvalue())
         sizes = {"mcz -e 1": archive_bytes}
         for name, compress, decompress in (("xz -9", ["xz", "-9", "-T1", "-c"], ["xz", "-d", "-T1", "-c"]),
                                            ("zstd -19", ["zstd", "-19", "-q", "-c"], ["zstd", "-d", "-q", "-c"]),

@@ -35,8 +35,8 @@ from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
-from mocapzip.representations.weighted import joint_position_columns
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
+from mocapzip.representations.weighted import joint_position_columns
 
 ROOT_STEP_RATIO = 0.2
 
@@ -166,16 +166,13 @@ def _components_for_shares(index: int) -> list[int]:
     `proxy.TruncationProxy` (`search.smallest_count_guided`)."""
     clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
     frames = slice(None, None, SEARCH_STRIDE)
-    coef = (clip.poses[frames] - pca.mean) @ pca.components
-    root = None if clip.root is None else clip.root[frames]
-    columns = joint_position_columns(clip.model, clip.representation_name)
-    proxy = TruncationProxy(clip.poses[frames], pca.mean, pca.components, columns)
+    poses, root = clip.poses[frames], None if clip.root is None else clip.root[frames]
+    proxy = TruncationProxy(poses, pca.mean, pca.components, joint_position_columns(clip.model, clip.representation_name))
     cache: dict[int, float] = {}
 
     def error(q: int) -> float:
         if q not in cache:
-            approx = pca.mean + coef[:, :q] @ pca.components[:, :q].T
-            cache[q] = clip.error(approx, root, frames)[0]
+            cache[q] = clip.error(proxy.truncated(q), root, frames)[0]
         return cache[q]
 
     scale, counts = 1.0, []
@@ -222,6 +219,11 @@ class ClipCoding:
     twists: dict  # twist flips for the clip's row (`LoadedClip.final_check`)
     proxy_scale: float | None  # true error / proxy error last measured (None: not measured)
     checks: int  # end-to-end scores run (sampled or whole)
+
+    @cached_property
+    def size(self) -> int:
+        """Bytes of its stream (the "context" coder, as the searches measure), coded once."""
+        return len(self.coded.payload())
 
 
 def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None,
@@ -354,7 +356,7 @@ class _ClipSearch:
             if self.predicted(STEP_RANGE[0], narrower, scale) > MAX_TRUNCATION_SHARE * self.target:
                 break
             step = self.step_for(narrower, scale)
-            if len(self.code(step, narrower).payload()) > NARROWER_TRIAL * len(best.coded.payload()):
+            if len(self.code(step, narrower).payload()) > NARROWER_TRIAL * best.size:
                 break
             candidate = self.calibrate(step, narrower, scale)
             if self._smaller(best, candidate) is best:
@@ -367,7 +369,7 @@ class _ClipSearch:
         """The smaller of two codings that meet the target (else the one that does)."""
         if (a.error[0] <= self.target) != (b.error[0] <= self.target):
             return a if a.error[0] <= self.target else b
-        return a if len(a.coded.payload()) <= len(b.coded.payload()) else b
+        return a if a.size <= b.size else b
 
     def calibrate(self, step: float, band: float, scale: float) -> ClipCoding:
         """The coarsest coding at `band` that meets the target on every frame, starting at `step`.

@@ -2,14 +2,12 @@
 
 The end-to-end error of a coding (decode, channels, forward kinematics, joint distances) costs
 tens of microseconds per frame, and a step search needs it for every step and band it tries.
-The error of the coefficients themselves costs a few operations per coefficient, and in the
-codec's weighted pose space it *is* the pose error: the temporal transforms are orthonormal and
-the class basis nearly so, so the squared error of the coefficients is the squared error of the
-weighted poses (Parseval). The proxies here turn it into a root-mean-square joint error in cm.
-That is not the promised mean joint error (the decoder's inverse kinematics, the root track and
-the distribution of the errors all come between), but it moves with it: the ratio of the two is
-nearly constant for a clip, so a factor measured by one true check carries over to the next
-step (`ratecontrol.encode.code_clip`).
+The proxies here measure the error where it is cheap: in the representation, as the mean
+joint error of the weighted pose error (`joint_errors`), taken straight from the coefficients'
+error through the inverse transform and the basis, with no decode to channels. That is not the
+promised error (the decoder's inverse kinematics and the rounding of the written text come
+between), but it moves with it: the ratio of the two is nearly constant for a clip, so a
+factor measured by one true check carries over to the next step (`ratecontrol.encode.code_clip`).
 """
 
 from __future__ import annotations
@@ -30,7 +28,11 @@ class TruncationProxy:
     def __init__(self, poses: np.ndarray, mean: np.ndarray, components: np.ndarray, columns: slice):
         self._centred = poses - mean
         self._coef = self._centred @ components
-        self._components, self._columns = components, columns
+        self._mean, self._components, self._columns = mean, components, columns
+
+    def truncated(self, q: int) -> np.ndarray:
+        """The poses as the first q components keep them (what the true score decodes)."""
+        return self._mean + self._coef[:, :q] @ self._components[:, :q].T
 
     def __call__(self, q: int) -> float:
         error = self._centred - self._coef[:, :q] @ self._components[:, :q].T

@@ -9,6 +9,7 @@ import numpy as np
 
 from mocapzip.formats.amc import Motion
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
+from mocapzip.representations import aligned
 from mocapzip.representations.base import Encoded, Representation
 
 
@@ -29,7 +30,7 @@ def joint_position_columns(model: SkeletonModel, representation_name: str) -> sl
     marker representations; none for channels."""
     if representation_name == "channels":
         return slice(0, 0)
-    return slice(0, 3 * model.n_joints if representation_name == "positions" else 3 * (model.n_joints - 1))
+    return slice(0, 3 * model.n_joints if representation_name == "positions" else aligned.position_columns(model))
 
 
 def skeleton_params(model: SkeletonModel, representation: Representation, layout: ChannelLayout) -> dict:
