@@ -9,21 +9,21 @@ kinematics, against the original clip's joint positions.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
-from mocapzip.formats.amc import AmcStyle, Motion, read_amc
+from mocapzip.formats.amc import Motion, read_amc
 from mocapzip.formats.asf import read_asf
 from mocapzip.inputs.discover import ClipSource
+from mocapzip.motion import compiled
 from mocapzip.motion.kinematics import forward
-from mocapzip.motion.metrics import joint_distances
 from mocapzip.progress import progress
 from mocapzip.representations import get_representation
 from mocapzip.representations.base import Encoded
-from mocapzip.representations.weighted import channels_from_weighted, pose_weights
-from mocapzip.representations.positions import flip_ranges, true_twists
+from mocapzip.representations.weighted import DecodeTail, pose_weights
+from mocapzip.representations.positions import TwistChoice, flip_ranges, twisted_bones
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 
 
@@ -37,6 +37,7 @@ class LoadedClip:
     positions: np.ndarray | None  # (F, J, 3) cm, original joint positions (lossy mode)
     axis_weight_cm: float = 1.0
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
+    _scored_frames: tuple = field(default=(None, None), repr=False, compare=False)  # see _originals
 
     @property
     def representation(self):
@@ -57,11 +58,15 @@ class LoadedClip:
 
     @property
     def nbytes(self) -> int:
-        """Memory held by the clip's arrays, its weighted poses counted whether computed yet or not."""
+        """Memory held by the clip's arrays, its weighted poses and its scoring's twist reference
+        (`_originals`) counted whether computed yet or not."""
         arrays = [self.motion.values, self.positions]
+        reference = 0
         if self.encoded is not None:
             arrays += [self.encoded.poses, self.encoded.poses, self.encoded.root]
-        return sum(a.nbytes for a in arrays if a is not None)
+            if self.axes_from_positions:
+                reference = self.motion.n_frames * len(twisted_bones(self.model)) * 9 * 8
+        return sum(a.nbytes for a in arrays if a is not None) + reference
 
     @property
     def layout(self) -> ChannelLayout:
@@ -83,29 +88,38 @@ class LoadedClip:
         errors, twist = self._score(poses, root, slice(None), final=True)
         return errors, ({} if twist is None else flip_ranges(twist.flips, self.model))
 
+    @cached_property
+    def decode_tail(self) -> DecodeTail:
+        return DecodeTail(self.model, self.representation, self.layout, self.encoded.params, self.axis_weight_cm)
+
     def _score(self, poses: np.ndarray, root: np.ndarray | None, frames, final: bool):
         """((mean, max) error, the TwistChoice made) of decoded weighted `poses` for the original
         `frames`, twists chosen towards the original's (None without solved bones)."""
-        twist = true_twists(self.model, self.motion.values[frames], self.layout) if self.axes_from_positions else None
-        values = channels_from_weighted(self.model, self.representation, self.layout, poses, root,
-                                        {**self.encoded.params, "twist": twist}, self.axis_weight_cm)
+        original, reference = self._originals(frames)
+        if len(poses) != len(original):
+            raise ValueError(f"{len(poses)} poses for {len(original)} frames")
+        values, flips = self.decode_tail.channels(poses, root, reference=reference)
         if final:
-            values = round_as_written(values, self.motion.style)
-        decoded = forward(self.model, values, self.layout).positions
-        distances = joint_distances(self.positions[frames], decoded)
-        return (float(distances.mean()), float(distances.max())), twist
+            style = self.motion.style
+            compiled.round_as_written(values, style.notation == "f", style.digits)
+        error = self.decode_tail.error(values, original)
+        if not self.axes_from_positions:
+            return error, None
+        return error, TwistChoice({int(j): flips[r] for r, j in enumerate(self.decode_tail.twisted)})
 
-
-def round_as_written(values: np.ndarray, style: AmcStyle) -> np.ndarray:
-    """What the AMC text of `values` in `style` reads back as (vectorised)."""
-    if style.notation == "f":
-        return np.round(values, style.digits)
-    digits = style.digits
-    with np.errstate(divide="ignore"):
-        exponent = np.floor(np.log10(np.abs(values)))
-    exponent = np.where(np.isfinite(exponent), exponent, 0)
-    scale = 10.0 ** (digits - 1 - exponent)
-    return np.round(values * scale) / scale
+    def _originals(self, frames) -> tuple[np.ndarray, np.ndarray | None]:
+        """The original joint positions of `frames` and the twist reference (`DecodeTail.twist_reference`),
+        kept for the last slice asked for: the encoder scores the same sample over and over."""
+        key = frames.indices(self.motion.n_frames) if isinstance(frames, slice) else None
+        if key is not None and self._scored_frames[0] == key:
+            return self._scored_frames[1]
+        original = np.ascontiguousarray(self.positions[frames])
+        reference = None
+        if self.axes_from_positions and self.representation_name != "channels":
+            reference = self.decode_tail.twist_reference(self.motion.values[frames])
+        if key is not None:
+            self._scored_frames = (key, (original, reference))
+        return original, reference
 
 
 def load_clips(sources: list[ClipSource], representation_name: str | None,

@@ -78,6 +78,11 @@ class TwistChoice:
     reference: dict[int, np.ndarray] | None = None
 
 
+def twisted_bones(model: SkeletonModel) -> list[int]:
+    """The solved bones with two rotation dofs: the ones with two solutions (`TwistChoice`)."""
+    return [int(j) for j in np.flatnonzero(solved_bones(model)) if len(model.rotation_axes(j)) == 2]
+
+
 def true_twists(model: SkeletonModel, values: np.ndarray, layout) -> TwistChoice:
     """The encoder's TwistChoice for a clip: the 2-dof solved bones' true local rotations,
     from the clip's channel `values` (F, C) in `layout` (bones the clip leaves out: identity)."""
@@ -85,10 +90,8 @@ def true_twists(model: SkeletonModel, values: np.ndarray, layout) -> TwistChoice
     columns = layout.columns()
     to_rad = np.pi / 180.0 if layout.angle_unit == "deg" else 1.0
     reference = {}
-    for j in np.flatnonzero(solved_bones(model)):
+    for j in twisted_bones(model):
         axes = model.rotation_axes(j)
-        if len(axes) != 2:
-            continue
         if model.names[j] in columns:
             rotation_columns = [k for k, channel in enumerate(model.channels[j]) if channel[0] == "r"]
             angles = values[:, columns[model.names[j]]][:, rotation_columns] * to_rad
@@ -174,7 +177,7 @@ def solve_local(model: SkeletonModel, j: int, parent_rotation: np.ndarray, bone:
     return axis_rotation(first, np.where(other, s1, s0)) @ axis_rotation(second, np.where(other, r1, r0))
 
 
-def _stored_axes(model: SkeletonModel, axes_from_positions: bool) -> np.ndarray:
+def stored_axes(model: SkeletonModel, axes_from_positions: bool) -> np.ndarray:
     """(J - 1,) bool: bones 1..J-1 whose y axis is stored."""
     return ~solved_bones(model)[1:] if axes_from_positions else np.ones(model.n_joints - 1, bool)
 
@@ -182,7 +185,7 @@ def _stored_axes(model: SkeletonModel, axes_from_positions: bool) -> np.ndarray:
 def marker_width(model: SkeletonModel, with_root: bool, axes_from_positions: bool = False) -> int:
     """Columns of an encoding: positions, y axes, short-bone x axes, root axes."""
     positions = model.n_joints - (0 if with_root else 1)
-    y_axes = int(_stored_axes(model, axes_from_positions).sum())
+    y_axes = int(stored_axes(model, axes_from_positions).sum())
     root_axes = 2 if model.root_proxy is None else 0
     return 3 * (positions + y_axes + int(model.short.sum()) + root_axes)
 
@@ -193,7 +196,7 @@ def encode_markers(model: SkeletonModel, pose: Pose, with_root: bool, axes_from_
     aligned = model.faux[None, 1:] @ pose.rotations[:, 1:]
     parts = [
         pose.positions[:, 0 if with_root else 1 :].reshape(n_frames, -1),
-        aligned[:, _stored_axes(model, axes_from_positions), 1].reshape(n_frames, -1),
+        aligned[:, stored_axes(model, axes_from_positions), 1].reshape(n_frames, -1),
         pose.rotations[:, np.flatnonzero(model.short), 0].reshape(n_frames, -1),
     ]
     if model.root_proxy is None:
@@ -213,7 +216,7 @@ def decode_markers(model: SkeletonModel, poses: np.ndarray, with_root: bool, axe
     n_frames, n_joints = len(poses), model.n_joints
     first = 0 if with_root else 1
     short = np.flatnonzero(model.short)
-    stored = _stored_axes(model, axes_from_positions)
+    stored = stored_axes(model, axes_from_positions)
     cuts = np.cumsum([3 * (n_joints - first), 3 * int(stored.sum()), 3 * len(short)])
     positions = np.zeros((n_frames, n_joints, 3))
     positions[:, first:] = poses[:, : cuts[0]].reshape(n_frames, -1, 3)

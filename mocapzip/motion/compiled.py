@@ -1,0 +1,739 @@
+"""Compiled kernels (numba) for the decode tail and the end-to-end error check.
+
+The error check decodes a clip some tens of times while its coding is searched, so the
+numpy decode (`representations.positions.decode_markers`, `solve_local`, `Aligned.inverse`,
+`kinematics.inverse`, `rotations.euler_angles`), the AMC rounding, forward kinematics
+and the joint distances are also written here as loops over frames and joints. Each
+kernel mirrors one numpy function in its order of operations (scores agree to about
+1e-13 cm); `tests/test_compiled_decode.py` holds them to the numpy code.
+
+The kernels take plain arrays; `representations.weighted.DecodeTail` prepares them for
+a skeleton, layout and representation. All helpers live in this one file because numba's
+cache does not notice edits to helpers in other files. Compiled code is cached next to
+this file (or in numba's user cache): only the first run on a machine compiles, about
+15 s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+PI = np.pi
+TWO_PI = 2 * np.pi  # np.unwrap's default period, and rotations.wrap's modulus
+GIMBAL = 1e-9  # rotations._GIMBAL
+TWO_DOF_ROUNDS = 20  # rotations._TWO_DOF_ROUNDS
+TWO_DOF_TOLERANCE = 1e-13  # rotations._TWO_DOF_TOLERANCE
+POW10 = np.power(10.0, np.arange(-300, 301).astype(np.float64))  # as round_as_written's 10.0 ** array
+
+
+# ----------------------------------------------------------------------------- scalar helpers
+
+@njit(cache=True, inline="always")
+def _npmod(a, b):
+    """numpy's float remainder (npy_divmod): fmod, moved to the sign of b."""
+    m = np.fmod(a, b)
+    if m != 0.0:
+        if (b < 0.0) != (m < 0.0):
+            m += b
+    else:
+        m = math.copysign(0.0, b)
+    return m
+
+
+@njit(cache=True, inline="always")
+def _mod2pi(y):
+    """numpy's y % (2 pi), bit for bit: fmod is exact, so within one period either side of
+    [0, 2 pi) the result is y, y + 2 pi or y - 2 pi (exact by Sterbenz) without calling fmod."""
+    if y >= 0.0:
+        if y < TWO_PI:
+            return y + 0.0  # -0.0 -> +0.0, as npy_divmod's copysign(0, b)
+        if y < 2.0 * TWO_PI:
+            return y - TWO_PI
+    elif y >= -TWO_PI:
+        return y + TWO_PI
+    return _npmod(y, TWO_PI)
+
+
+@njit(cache=True, inline="always")
+def _wrap(x):
+    """rotations.wrap: (x + pi) % (2 pi) - pi."""
+    return _mod2pi(x + PI) - PI
+
+
+@njit(cache=True, inline="always")
+def _axis_rot(k, angle, out):
+    """rotations.axis_rotation (row convention) into out (3, 3)."""
+    b = (k + 1) % 3
+    c = (k + 2) % 3
+    co = math.cos(angle)
+    si = math.sin(angle)
+    for i in range(3):
+        for l in range(3):
+            out[i, l] = 0.0
+    out[k, k] = 1.0
+    out[b, b] = co
+    out[c, c] = co
+    out[b, c] = si
+    out[c, b] = -si
+
+
+@njit(cache=True, inline="always")
+def _mm(a, b, out):
+    """out = a @ b (3x3), sums in index order."""
+    for i in range(3):
+        a0 = a[i, 0]
+        a1 = a[i, 1]
+        a2 = a[i, 2]
+        for k in range(3):
+            out[i, k] = a0 * b[0, k] + a1 * b[1, k] + a2 * b[2, k]
+
+
+@njit(cache=True, inline="always")
+def _mtm(a, b, out):
+    """out = a^T @ b (3x3)."""
+    for i in range(3):
+        a0 = a[0, i]
+        a1 = a[1, i]
+        a2 = a[2, i]
+        for k in range(3):
+            out[i, k] = a0 * b[0, k] + a1 * b[1, k] + a2 * b[2, k]
+
+
+@njit(cache=True, inline="always")
+def _mmt(a, b, out):
+    """out = a @ b^T (3x3)."""
+    for i in range(3):
+        a0 = a[i, 0]
+        a1 = a[i, 1]
+        a2 = a[i, 2]
+        for k in range(3):
+            out[i, k] = a0 * b[k, 0] + a1 * b[k, 1] + a2 * b[k, 2]
+
+
+@njit(cache=True, inline="always")
+def _angle_about_m(k, m):
+    """rotations.angle_about for one matrix."""
+    b = (k + 1) % 3
+    c = (k + 2) % 3
+    return math.atan2(m[b, c] - m[c, b], m[b, b] + m[c, c])
+
+
+@njit(cache=True)
+def _unwrap_inplace(p):
+    """np.unwrap (period 2 pi, discont pi) of a 1-D array, in place."""
+    n = p.shape[0]
+    cum = 0.0
+    prev = p[0] if n > 0 else 0.0
+    for i in range(1, n):
+        cur = p[i]
+        dd = cur - prev
+        ddmod = _mod2pi(dd + PI) - PI
+        if ddmod == -PI and dd > 0.0:
+            ddmod = PI
+        ph = ddmod - dd
+        if abs(dd) < PI:
+            ph = 0.0
+        cum += ph
+        p[i] = cur + cum
+        prev = cur
+
+
+@njit(cache=True)
+def _pairwise_leaf(a, lo, n):
+    """numpy's pairwise_sum_DOUBLE for n <= 128 (PW_BLOCKSIZE)."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    r0 = a[lo]
+    r1 = a[lo + 1]
+    r2 = a[lo + 2]
+    r3 = a[lo + 3]
+    r4 = a[lo + 4]
+    r5 = a[lo + 5]
+    r6 = a[lo + 6]
+    r7 = a[lo + 7]
+    i = 8
+    end = n - (n % 8)
+    while i < end:
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True)
+def _pairwise_sum(a, lo, n):
+    """numpy's pairwise_sum_DOUBLE over a[lo:lo+n], its recursion unrolled onto a stack
+    (recursive njit functions crash when loaded from numba's cache)."""
+    if n <= 128:
+        return _pairwise_leaf(a, lo, n)
+    s_lo = np.empty(128, np.int64)
+    s_n = np.empty(128, np.int64)
+    s_state = np.empty(128, np.int64)
+    vals = np.empty(128)
+    sp = 0
+    vp = 0
+    s_lo[0] = lo
+    s_n[0] = n
+    s_state[0] = 0
+    sp = 1
+    while sp > 0:
+        top = sp - 1
+        tlo = s_lo[top]
+        tn = s_n[top]
+        if tn <= 128:
+            sp -= 1
+            vals[vp] = _pairwise_leaf(a, tlo, tn)
+            vp += 1
+            continue
+        n2 = tn // 2
+        n2 -= n2 % 8
+        st = s_state[top]
+        if st == 0:
+            s_state[top] = 1
+            s_lo[sp] = tlo
+            s_n[sp] = n2
+            s_state[sp] = 0
+            sp += 1
+        elif st == 1:
+            s_state[top] = 2
+            s_lo[sp] = tlo + n2
+            s_n[sp] = tn - n2
+            s_state[sp] = 0
+            sp += 1
+        else:
+            sp -= 1
+            right = vals[vp - 1]
+            left = vals[vp - 2]
+            vp -= 2
+            vals[vp] = left + right
+            vp += 1
+    return vals[0]
+
+
+@njit(cache=True)
+def np_sum(a):
+    """np.sum of a contiguous 1-D float64 array (add.reduce: pairwise summation), bit for bit
+    as checked in compare.py."""
+    return _pairwise_sum(a, 0, a.shape[0])
+
+
+# ----------------------------------------------------------------------------- euler fits
+
+@njit(cache=True)
+def _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res):
+    """rotations._tait_bryan over frames (gimbal-locked frames carry the latest unlocked first angle)."""
+    sign = 1.0 if (b - a) % 3 == 1 else -1.0
+    have_free = False
+    free_first = 0.0
+    for f in range(locals_j.shape[0]):
+        m = locals_j[f]
+        cos_middle = math.hypot(m[b, c], m[c, c])
+        fi = math.atan2(sign * m[b, c], m[c, c])
+        mi = math.atan2(-sign * m[a, c], cos_middle)
+        if cos_middle < GIMBAL:
+            fi = free_first if have_free else 0.0
+        else:
+            have_free = True
+            free_first = fi
+        _axis_rot(a, fi, ra)
+        _axis_rot(b, mi, rb)
+        _mm(ra, rb, rp)
+        _mtm(rp, m, res)
+        first[f] = fi
+        middle[f] = mi
+        last[f] = _angle_about_m(c, res)
+
+
+@njit(cache=True)
+def _euler3(locals_j, a, b, c, out_angles, work, ra, rb, rp, res):
+    """rotations.euler_angles for 3 axes: _tait_bryan, _continuous (branch parity), np.unwrap."""
+    n = locals_j.shape[0]
+    first = work[0]
+    middle = work[1]
+    last = work[2]
+    _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res)
+    parity = False
+    for f in range(n):
+        if f > 0:
+            d0 = _wrap(first[f] - first[f - 1])
+            d1 = _wrap(middle[f] - middle[f - 1])
+            d2 = _wrap(last[f] - last[f - 1])
+            stay = d0 ** 2 + d1 ** 2 + d2 ** 2
+            e0 = _wrap((first[f] + PI) - first[f - 1])
+            e1 = _wrap((PI - middle[f]) - middle[f - 1])
+            e2 = _wrap((last[f] + PI) - last[f - 1])
+            switch = e0 ** 2 + e1 ** 2 + e2 ** 2
+            if switch < stay:
+                parity = not parity
+        if parity:
+            out_angles[0, f] = first[f] + PI
+            out_angles[1, f] = PI - middle[f]
+            out_angles[2, f] = last[f] + PI
+        else:
+            out_angles[0, f] = first[f]
+            out_angles[1, f] = middle[f]
+            out_angles[2, f] = last[f]
+    for i in range(3):
+        _unwrap_inplace(out_angles[i])
+
+
+@njit(cache=True)
+def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res):
+    """rotations.euler_angles for 2 axes: _two_axis_fit (all frames iterate together, as the
+    numpy code's global stopping test does), then np.unwrap."""
+    n = locals_j.shape[0]
+    missing = 3 - a0 - a1
+    first = out_angles[0]
+    second = out_angles[1]
+    third = work[2]
+    _tait_bryan_all(locals_j, a0, a1, missing, first, second, third, ra, rb, rp, res)
+    for f in range(n):
+        if abs(_wrap(third[f] + PI)) < abs(_wrap(third[f])):
+            first[f] = first[f] + PI
+            second[f] = PI - second[f]
+    for _ in range(TWO_DOF_ROUNDS):
+        worst = 0.0
+        nan = False
+        for f in range(n):
+            m = locals_j[f]
+            bf = first[f]
+            bs = second[f]
+            _axis_rot(a1, bs, rb)
+            _mmt(m, rb, res)  # m @ R_a1(second)^T
+            nf = _angle_about_m(a0, res)
+            _axis_rot(a0, nf, ra)
+            _mtm(ra, m, res)  # R_a0(first)^T @ m
+            ns = _angle_about_m(a1, res)
+            first[f] = nf
+            second[f] = ns
+            d = abs(_wrap(nf - bf))
+            e = abs(_wrap(ns - bs))
+            if d != d or e != e:
+                nan = True
+            if d > worst:
+                worst = d
+            if e > worst:
+                worst = e
+        if not nan and worst < TWO_DOF_TOLERANCE:
+            break
+    _unwrap_inplace(first)
+    _unwrap_inplace(second)
+
+
+@njit(cache=True)
+def _euler1(locals_j, a, out_angles):
+    for f in range(locals_j.shape[0]):
+        out_angles[0, f] = _angle_about_m(a, locals_j[f])
+    _unwrap_inplace(out_angles[0])
+
+
+# ----------------------------------------------------------------------------- decode tail
+
+@njit(cache=True, inline="always")
+def _orthonormal(x0, x1, x2, y0, y1, y2, out):
+    """rotations.orthonormal_frame for one (x, y) pair: rows x, y', z."""
+    nx = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    nx = max(nx, 1e-300)
+    x0 = x0 / nx
+    x1 = x1 / nx
+    x2 = x2 / nx
+    d = y0 * x0 + y1 * x1 + y2 * x2
+    y0 = y0 - d * x0
+    y1 = y1 - d * x1
+    y2 = y2 - d * x2
+    ny = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+    ny = max(ny, 1e-300)
+    y0 = y0 / ny
+    y1 = y1 / ny
+    y2 = y2 / ny
+    out[0, 0] = x0
+    out[0, 1] = x1
+    out[0, 2] = x2
+    out[1, 0] = y0
+    out[1, 1] = y1
+    out[1, 2] = y2
+    out[2, 0] = x1 * y2 - x2 * y1
+    out[2, 1] = x2 * y0 - x0 * y2
+    out[2, 2] = x0 * y1 - x1 * y0
+
+
+@njit(cache=True)
+def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_root,
+                    parents, faux, pos_col, y_col, x_col, root_ax_col, root_proxy,
+                    solved, sol_u, sol_nrot, sol_a0, sol_a1, sol_radius, sol_phase, sol_ref,
+                    ref, use_ref, flips_in, axis,
+                    col_start, nchan, chan_kind, chan_axis, nrot, rot_axes, rot_k,
+                    cm_per_unit, from_rad, width):
+    """Weighted poses (F, M) [+ root track (F, 4)] -> AMC channel values (F, width), and the
+    twist flips of the 2-dof solved bones (NR, F): `channels_from_weighted` for the marker
+    representations (positions / aligned / scaled; normalised after its numpy pre-pass)."""
+    F = poses.shape[0]
+    J = parents.shape[0]
+    NR = flips_in.shape[0]
+    values = np.zeros((F, width))
+    flips_out = np.zeros((NR, F), dtype=np.bool_)
+    locals_ = np.empty((J, F, 3, 3))
+    pos = np.zeros((J, 3))
+    R = np.empty((J, 3, 3))
+    W = np.empty((J, 3, 3))
+    fr = np.empty((3, 3))
+    t1 = np.empty((3, 3))
+    t2 = np.empty((3, 3))
+    t3 = np.empty((3, 3))
+    sa = np.empty((3, 3))
+    sb = np.empty((3, 3))
+    turn = np.empty((3, 3))
+    sol0 = np.empty((3, 3))
+    sol1 = np.empty((3, 3))
+    sa0 = np.empty((3, 3))
+    sa1 = np.empty((3, 3))
+    sb0 = np.empty((3, 3))
+    sb1 = np.empty((3, 3))
+    for f in range(F):
+        # positions as stored (root zero without root)
+        for j in range(J):
+            c0 = pos_col[j]
+            if c0 < 0:
+                pos[j, 0] = 0.0
+                pos[j, 1] = 0.0
+                pos[j, 2] = 0.0
+            else:
+                for k in range(3):
+                    v = poses[f, c0 + k] / weights[c0 + k]
+                    if c0 + k < n_pos_cols:
+                        v = v / pos_div
+                    pos[j, k] = v
+        # stored frames: R = B^T orthonormal_frame(x, y)
+        for j in range(1, J):
+            if y_col[j] < 0:
+                continue  # solved bone: below
+            p = parents[j]
+            yc = y_col[j]
+            y0 = poses[f, yc] / weights[yc]
+            y1 = poses[f, yc + 1] / weights[yc + 1]
+            y2 = poses[f, yc + 2] / weights[yc + 2]
+            xc = x_col[j]
+            if xc >= 0:
+                x0 = poses[f, xc] / weights[xc]
+                x1 = poses[f, xc + 1] / weights[xc + 1]
+                x2 = poses[f, xc + 2] / weights[xc + 2]
+            else:
+                x0 = pos[j, 0] - pos[p, 0]
+                x1 = pos[j, 1] - pos[p, 1]
+                x2 = pos[j, 2] - pos[p, 2]
+            _orthonormal(x0, x1, x2, y0, y1, y2, fr)
+            _mtm(faux[j], fr, R[j])
+        if root_proxy >= 0:
+            R[0, :, :] = R[root_proxy]
+        else:
+            rc = root_ax_col
+            _orthonormal(poses[f, rc] / weights[rc], poses[f, rc + 1] / weights[rc + 1],
+                         poses[f, rc + 2] / weights[rc + 2], poses[f, rc + 3] / weights[rc + 3],
+                         poses[f, rc + 4] / weights[rc + 4], poses[f, rc + 5] / weights[rc + 5], R[0])
+        # solved bones, parents first (solve_local)
+        for s in range(solved.shape[0]):
+            j = solved[s]
+            p = parents[j]
+            c = axis[j]
+            b0 = pos[j, 0] - pos[p, 0]
+            b1 = pos[j, 1] - pos[p, 1]
+            b2 = pos[j, 2] - pos[p, 2]
+            Rp = R[p]
+            # (bone @ R_p^T) @ C^T
+            q0 = b0 * Rp[0, 0] + b1 * Rp[0, 1] + b2 * Rp[0, 2]
+            q1 = b0 * Rp[1, 0] + b1 * Rp[1, 1] + b2 * Rp[1, 2]
+            q2 = b0 * Rp[2, 0] + b1 * Rp[2, 1] + b2 * Rp[2, 2]
+            tt0 = q0 * c[0, 0] + q1 * c[0, 1] + q2 * c[0, 2]
+            tt1 = q0 * c[1, 0] + q1 * c[1, 1] + q2 * c[1, 2]
+            tt2 = q0 * c[2, 0] + q1 * c[2, 1] + q2 * c[2, 2]
+            nt = max(math.sqrt(tt0 * tt0 + tt1 * tt1 + tt2 * tt2), 1e-300)
+            tv = (tt0 / nt, tt1 / nt, tt2 / nt)
+            u = sol_u[j]
+            nr = sol_nrot[j]
+            if nr == 0:
+                for i in range(3):
+                    for k in range(3):
+                        t3[i, k] = 1.0 if i == k else 0.0
+            elif nr == 1:
+                a = sol_a0[j]
+                bb = (a + 1) % 3
+                cc = (a + 2) % 3
+                _axis_rot(a, math.atan2(tv[cc], tv[bb]) - sol_phase[j], t3)  # sol_phase: arctan2(u_c, u_b), constant
+            else:
+                a = sol_a0[j]
+                a2 = sol_a1[j]
+                bb = (a + 1) % 3
+                cc = (a + 2) % 3
+                radius = sol_radius[j]
+                phase = sol_phase[j]
+                if a2 == bb:
+                    turn0 = math.acos(min(max(tv[bb] / radius, -1.0), 1.0))
+                    turn1 = -turn0
+                else:
+                    turn0 = math.asin(min(max(tv[cc] / radius, -1.0), 1.0))
+                    turn1 = PI - turn0
+                b2_ = (a2 + 1) % 3
+                c2_ = (a2 + 2) % 3
+                s0 = _wrap(turn0 - phase)
+                _axis_rot(a, s0, sa0)
+                v_b = u[0] * sa0[0, b2_] + u[1] * sa0[1, b2_] + u[2] * sa0[2, b2_]
+                v_c = u[0] * sa0[0, c2_] + u[1] * sa0[1, c2_] + u[2] * sa0[2, c2_]
+                at = math.atan2(tv[c2_], tv[b2_])
+                r0 = _wrap(at - math.atan2(v_c, v_b))
+                s1 = _wrap(turn1 - phase)
+                _axis_rot(a, s1, sa1)
+                v_b = u[0] * sa1[0, b2_] + u[1] * sa1[1, b2_] + u[2] * sa1[2, b2_]
+                v_c = u[0] * sa1[0, c2_] + u[1] * sa1[1, c2_] + u[2] * sa1[2, c2_]
+                r1 = _wrap(at - math.atan2(v_c, v_b))
+                other = max(abs(s1), abs(r1)) < max(abs(s0), abs(r0))
+                _axis_rot(a2, r0, sb0)
+                _axis_rot(a2, r1, sb1)
+                ri = sol_ref[j]
+                if use_ref:
+                    _mm(sa0, sb0, sol0)
+                    _mm(sa1, sb1, sol1)
+                    ref_m = ref[f, ri]
+                    n0 = 0.0
+                    n1 = 0.0
+                    for i in range(3):
+                        for k in range(3):
+                            n0 += sol0[i, k] * ref_m[i, k]
+                            n1 += sol1[i, k] * ref_m[i, k]
+                    chosen = n1 > n0
+                    flips_out[ri, f] = chosen != other
+                    other = chosen
+                    if other:
+                        t3[:, :] = sol1
+                    else:
+                        t3[:, :] = sol0
+                else:
+                    if ri >= 0:
+                        other = other != flips_in[ri, f]
+                        flips_out[ri, f] = flips_in[ri, f]
+                    if other:
+                        _mm(sa1, sb1, t3)
+                    else:
+                        _mm(sa0, sb0, t3)
+            # R_j = ((C^T @ local) @ C) @ R_p
+            _mtm(c, t3, t1)
+            _mm(t1, c, t2)
+            _mm(t2, Rp, R[j])
+        # world rotations: aligned family turns by the heading
+        if has_track:
+            _axis_rot(1, root[f, 3], turn)
+            for j in range(J):
+                _mm(R[j], turn, W[j])
+            rx = root[f, 0]
+            ry = root[f, 1]
+            rz = root[f, 2]
+        else:
+            for j in range(J):
+                W[j, :, :] = R[j]
+            rx = pos[0, 0]
+            ry = pos[0, 1]
+            rz = pos[0, 2]
+        # kinematics.inverse: M = (R_j^T C^T)^T (R_p^T C^T); translations
+        for j in range(J):
+            cs = col_start[j]
+            if cs < 0:
+                continue
+            c = axis[j]
+            if nrot[j] > 0:
+                # bone_frame_t = R_j^T @ C^T
+                for i in range(3):
+                    for k in range(3):
+                        t1[i, k] = W[j, 0, i] * c[k, 0] + W[j, 1, i] * c[k, 1] + W[j, 2, i] * c[k, 2]
+                p = parents[j]
+                if p < 0:
+                    # t1^T @ C^T
+                    for i in range(3):
+                        for k in range(3):
+                            locals_[j, f, i, k] = t1[0, i] * c[k, 0] + t1[1, i] * c[k, 1] + t1[2, i] * c[k, 2]
+                else:
+                    for i in range(3):
+                        for k in range(3):
+                            t2[i, k] = W[p, 0, i] * c[k, 0] + W[p, 1, i] * c[k, 1] + W[p, 2, i] * c[k, 2]
+                    _mtm(t1, t2, locals_[j, f])
+            for k in range(nchan[j]):
+                if chan_kind[j, k] == 1:
+                    ax = chan_axis[j, k]
+                    v = rx if ax == 0 else (ry if ax == 1 else rz)
+                    values[f, cs + k] = v / cm_per_unit
+    # euler fits per joint, over the frames given (continuity depends on them)
+    angles = np.empty((3, F))
+    work = np.empty((3, F))
+    for j in range(J):
+        cs = col_start[j]
+        n = nrot[j]
+        if cs < 0 or n == 0:
+            continue
+        lj = locals_[j]
+        if n == 3:
+            _euler3(lj, rot_axes[j, 0], rot_axes[j, 1], rot_axes[j, 2], angles, work, sa, sb, t1, t2)
+        elif n == 2:
+            _euler2(lj, rot_axes[j, 0], rot_axes[j, 1], angles, work, sa, sb, t1, t2)
+        else:
+            _euler1(lj, rot_axes[j, 0], angles)
+        for i in range(n):
+            col = cs + rot_k[j, i]
+            for f in range(F):
+                values[f, col] = angles[i, f] * from_rad
+    return values, flips_out
+
+
+# ----------------------------------------------------------------------------- rounding, FK, distances
+
+@njit(cache=True)
+def round_as_written(values, fixed, digits):
+    """In place, what the AMC text of values reads back as: 'f' np.round(v, digits); 'g' `digits` significant digits."""
+    F, C = values.shape
+    if fixed:
+        scale = 10.0 ** digits
+        for f in range(F):
+            for c in range(C):
+                values[f, c] = np.rint(values[f, c] * scale) / scale
+    else:
+        for f in range(F):
+            for c in range(C):
+                v = values[f, c]
+                e = math.floor(math.log10(abs(v))) if v != 0.0 else -math.inf
+                if not math.isfinite(e):
+                    e = 0.0
+                n = (digits - 1) - e
+                if n >= -300.0 and n <= 300.0:
+                    scale = POW10[int(n) + 300]
+                else:
+                    scale = 10.0 ** n
+                values[f, c] = np.rint(v * scale) / scale
+
+
+@njit(cache=True, inline="always")
+def _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+              to_rad, cm_per_unit, W, pos):
+    """kinematics.forward for one frame: bone frames W (J, 3, 3) and positions (J, 3)."""
+    J = parents.shape[0]
+    for j in range(J):
+        p = parents[j]
+        if p < 0:
+            for i in range(3):
+                for k in range(3):
+                    W[j, i, k] = axis0[i, k]
+            pos[j, 0] = 0.0
+            pos[j, 1] = 0.0
+            pos[j, 2] = 0.0
+        else:
+            _mm(link[j], W[p], W[j])
+        cs = col_start[j]
+        if cs >= 0:
+            for k in range(nchan[j] - 1, -1, -1):
+                v = values[f, cs + k]
+                ax = chan_axis[j, k]
+                if chan_kind[j, k] == 0:
+                    angle = v * to_rad
+                    co = math.cos(angle)
+                    si = math.sin(angle)
+                    b = (ax + 1) % 3
+                    c = (ax + 2) % 3
+                    for col in range(3):
+                        rb = W[j, b, col]
+                        rc = W[j, c, col]
+                        W[j, b, col] = co * rb + si * rc
+                        W[j, c, col] = co * rc - si * rb
+                else:
+                    pos[j, ax] = v * cm_per_unit
+        if p >= 0:
+            for col in range(3):
+                pos[j, col] = pos[p, col] + (vct[j, 0] * W[j, 0, col] + vct[j, 1] * W[j, 1, col]
+                                             + vct[j, 2] * W[j, 2, col])
+
+
+@njit(cache=True)
+def fk_positions(values, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit):
+    """kinematics.forward(...).positions: (F, J, 3) cm."""
+    F = values.shape[0]
+    J = parents.shape[0]
+    out = np.empty((F, J, 3))
+    W = np.empty((J, 3, 3))
+    for f in range(F):
+        _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                  to_rad, cm_per_unit, W, out[f])
+    return out
+
+
+@njit(cache=True)
+def joint_distance_stats(original, decoded):
+    """(mean, max) of metrics.joint_distances(original, decoded) (mean as np.mean: pairwise sum)."""
+    F, J, _ = original.shape
+    d = np.empty(F * J)
+    mx = -math.inf
+    for f in range(F):
+        for j in range(J):
+            x = decoded[f, j, 0] - original[f, j, 0]
+            y = decoded[f, j, 1] - original[f, j, 1]
+            z = decoded[f, j, 2] - original[f, j, 2]
+            v = math.sqrt(x * x + y * y + z * z)
+            d[f * J + j] = v
+            if v > mx or v != v:
+                mx = v
+    return np_sum(d) / (F * J), mx
+
+
+@njit(cache=True)
+def fk_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                 to_rad, cm_per_unit):
+    """fk_positions + joint_distance_stats fused: no (F, J, 3) array."""
+    F = values.shape[0]
+    J = parents.shape[0]
+    W = np.empty((J, 3, 3))
+    pos = np.empty((J, 3))
+    d = np.empty(F * J)
+    mx = -math.inf
+    for f in range(F):
+        _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                  to_rad, cm_per_unit, W, pos)
+        for j in range(J):
+            x = pos[j, 0] - original[f, j, 0]
+            y = pos[j, 1] - original[f, j, 1]
+            z = pos[j, 2] - original[f, j, 2]
+            v = math.sqrt(x * x + y * y + z * z)
+            d[f * J + j] = v
+            if v > mx or v != v:
+                mx = v
+    return np_sum(d) / (F * J), mx
+
+
+@njit(cache=True)
+def twist_reference(values, ref_joints, ref_cols, ref_a0, ref_a1, to_rad):
+    """positions.true_twists: (F, NR, 3, 3) euler_matrix of the 2-dof solved bones' original angles."""
+    F = values.shape[0]
+    NR = ref_joints.shape[0]
+    out = np.empty((F, NR, 3, 3))
+    ra = np.empty((3, 3))
+    rb = np.empty((3, 3))
+    for f in range(F):
+        for r in range(NR):
+            if ref_cols[r, 0] < 0:
+                for i in range(3):
+                    for k in range(3):
+                        out[f, r, i, k] = 1.0 if i == k else 0.0
+                continue
+            _axis_rot(ref_a0[r], values[f, ref_cols[r, 0]] * to_rad, ra)
+            _axis_rot(ref_a1[r], values[f, ref_cols[r, 1]] * to_rad, rb)
+            _mm(ra, rb, out[f, r])
+    return out

@@ -1,0 +1,154 @@
+"""The compiled decode tail and error check (`motion.compiled`, `representations.weighted.DecodeTail`)
+against the numpy code they mirror: `Representation.inverse`, `positions.true_twists`,
+`kinematics.forward` and `metrics.joint_distances`, on real clips of three kinds of skeleton.
+
+Poses are disturbed as a coding leaves them (white noise, a smooth drift) and far more (a drift
+of 20-50 cm), which forces other Euler branches, unwrapping and twist flips. Sampled frames
+(every 8th) are decoded as the encoder's check decodes them: continuity follows the frames given.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocapzip.inputs.clip import ClipReader
+from mocapzip.inputs.discover import find_clips
+from mocapzip.motion import compiled, rotations
+from mocapzip.motion.kinematics import forward
+from mocapzip.motion.metrics import joint_distances
+from mocapzip.representations.positions import flips_from_ranges, flip_ranges, true_twists
+from mocapzip.representations.weighted import channels_from_weighted
+
+CLIPS = {  # relative to ../shared/data: CMU; HDM05; Vicon Blade (short bones, 'f' notation, CRLF)
+    "cmu": "cmu/07/07_03.amc",
+    "hdm05": "hdm05/bd/HDM_bd_depositFloorR_001_120.amc",
+    "blade": "other-vicon-blade/walk_200fps/walkMoCapVideo.amc",
+}
+REPRESENTATIONS = [("aligned", True), ("aligned", False), ("positions", True), ("scaled", True),
+                   ("normalised", True), ("channels", False)]
+VALUES_TOLERANCE = 1e-9  # degrees (or radians): seen up to 2e-11 on the large drift
+ERROR_TOLERANCE = 1e-9  # cm: seen up to 4e-13
+
+
+def load(shared_data, name: str, representation: str, axes_from_positions: bool, frames: int = 600):
+    path = shared_data / CLIPS[name]
+    source = next(s for s in find_clips([path.parent]) if s.amc == path)
+    clip = ClipReader(representation, axes_from_positions=axes_from_positions).read(source)
+    n = min(frames, clip.motion.n_frames)
+    clip.motion.values = clip.motion.values[:n]
+    clip.positions = clip.positions[:n]
+    clip.encoded.poses = clip.encoded.poses[:n]
+    if clip.encoded.root is not None:
+        clip.encoded.root = clip.encoded.root[:n]
+    clip.__dict__.pop("poses", None)
+    return clip
+
+
+def disturbed(clip, kind: str, seed: int = 0):
+    """Weighted poses and root as a coding leaves them ('noise', 'smooth') or far worse ('large')."""
+    rng = np.random.default_rng(seed)
+    poses, root = clip.poses, clip.root
+    n = len(poses)
+    if kind == "noise":
+        return (poses + rng.normal(0, 0.3, poses.shape),
+                None if root is None else root + rng.normal(0, 1, root.shape) * [0.3, 0.3, 0.3, 0.003])
+    size = 0.6 if kind == "smooth" else 6.0
+    kernel = np.exp(-0.5 * (np.arange(-30, 31) / 10.0) ** 2)
+    kernel /= np.sqrt((kernel ** 2).sum())
+
+    def drift(shape):
+        noise = rng.normal(0, 1, (n + 60,) + shape[1:])
+        return np.apply_along_axis(lambda c: np.convolve(c, kernel, "valid"), 0, noise)[:n]
+
+    return (poses + size * drift(poses.shape),
+            None if root is None else root + drift(root.shape) * np.array([0.3, 0.3, 0.3, 0.003]) * size / 0.3)
+
+
+def numpy_round_as_written(values: np.ndarray, style) -> np.ndarray:
+    """What the AMC text of `values` reads back as, in numpy: the definition the kernel follows."""
+    if style.notation == "f":
+        return np.round(values, style.digits)
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):  # 5e-324 overflows, as in the kernel
+        exponent = np.floor(np.log10(np.abs(values)))
+        scale = 10.0 ** (style.digits - 1 - np.where(np.isfinite(exponent), exponent, 0))
+        return np.round(values * scale) / scale
+
+
+def numpy_score(clip, poses, root, frames, final: bool):
+    """LoadedClip._score in numpy: (values, (mean, max) cm, TwistChoice)."""
+    twist = true_twists(clip.model, clip.motion.values[frames], clip.layout) if clip.axes_from_positions else None
+    values = clip.representation.inverse(clip.model, type(clip.encoded)(poses / clip.weights, root,
+                                                                        {**clip.encoded.params, "twist": twist}),
+                                         clip.layout)
+    if final:
+        values = numpy_round_as_written(values, clip.motion.style)
+    distances = joint_distances(clip.positions[frames], forward(clip.model, values, clip.layout).positions)
+    return values, (float(distances.mean()), float(distances.max())), twist
+
+
+@pytest.mark.parametrize("name", sorted(CLIPS))
+@pytest.mark.parametrize("representation,axes_from_positions", REPRESENTATIONS)
+@pytest.mark.parametrize("kind", ["noise", "smooth", "large"])
+def test_score_agrees_with_numpy(shared_data, name, representation, axes_from_positions, kind):
+    clip = load(shared_data, name, representation, axes_from_positions)
+    poses, root = disturbed(clip, kind)
+    for frames in (slice(None, None, 8), slice(None)):
+        for final in (False, True):
+            sampled_poses, sampled_root = poses[frames], None if root is None else root[frames]
+            expected_values, expected_error, expected_twist = numpy_score(clip, sampled_poses, sampled_root,
+                                                                          frames, final)
+            error, twist = clip._score(sampled_poses, sampled_root, frames, final)
+            assert error == pytest.approx(expected_error, abs=ERROR_TOLERANCE)
+            assert error[0] > 0.05  # the disturbance shows: the comparison is not between two zeros
+            original, reference = clip._originals(frames)
+            values, flips = clip.decode_tail.channels(sampled_poses, sampled_root, reference=reference)
+            if final:
+                compiled.round_as_written(values, clip.motion.style.notation == "f", clip.motion.style.digits)
+            np.testing.assert_allclose(values, expected_values, rtol=0, atol=VALUES_TOLERANCE)
+            if twist is not None and kind != "large":  # far off, ties between the two solutions fall either way
+                for j, flags in expected_twist.flips.items():
+                    np.testing.assert_array_equal(twist.flips[j], flags)
+
+
+@pytest.mark.parametrize("name", ["cmu", "hdm05"])  # the Blade skeleton has no 2-dof solved bone
+def test_decoder_follows_the_stored_flips(shared_data, name):
+    """Decoding with the flips the encoder stored gives the channels the encoder scored."""
+    clip = load(shared_data, name, "aligned", True)
+    poses, root = disturbed(clip, "large", seed=3)
+    (_, _), twist = clip._score(poses, root, slice(None), final=False)
+    assert any(flags.any() for flags in twist.flips.values()), "the drift should flip some twists"
+    encoder_values, _ = clip.decode_tail.channels(poses, root, reference=clip._originals(slice(None))[1])
+    stored = flips_from_ranges(flip_ranges(twist.flips, clip.model), clip.model, len(poses))
+    params = {**clip.encoded.params, "twist": stored}
+    decoded = channels_from_weighted(clip.model, clip.representation, clip.layout, poses, root, params,
+                                     clip.axis_weight_cm)
+    np.testing.assert_array_equal(decoded, encoder_values)
+    numpy_decoded = clip.representation.inverse(
+        clip.model, type(clip.encoded)(poses / clip.weights, root, params), clip.layout)
+    np.testing.assert_allclose(decoded, numpy_decoded, rtol=0, atol=VALUES_TOLERANCE)
+
+
+def test_rounding_as_written_matches_numpy():
+    rng = np.random.default_rng(7)
+    values = np.concatenate([rng.normal(0, 1, 4000) * 10.0 ** rng.integers(-6, 6, 4000),
+                             [0.0, -0.0, 0.5, -0.5, 1.5, 2.5, 123456.5, 1e-300, 5e-324, 179.99995, -180.0]])
+    for notation, digits in (("g", 6), ("g", 4), ("f", 6), ("f", 3)):
+        style = type("Style", (), {"notation": notation, "digits": digits})
+        rounded = values.copy()[None]
+        compiled.round_as_written(rounded, notation == "f", digits)
+        np.testing.assert_array_equal(rounded[0], numpy_round_as_written(values, style))
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 127, 128, 129, 255, 256, 1000, 4097, 100_003])
+def test_pairwise_sum_is_numpys(n):
+    """The mean error is summed as numpy sums, so scores match `distances.mean()` bit for bit."""
+    values = np.random.default_rng(n).exponential(1.0, n)
+    assert compiled.np_sum(values) == np.sum(values)
+
+
+def test_kernel_constants_are_the_numpy_codes():
+    """numba freezes globals when it compiles, so the kernels keep their own copies of these."""
+    assert compiled.GIMBAL == rotations._GIMBAL
+    assert compiled.TWO_DOF_ROUNDS == rotations._TWO_DOF_ROUNDS
+    assert compiled.TWO_DOF_TOLERANCE == rotations._TWO_DOF_TOLERANCE
