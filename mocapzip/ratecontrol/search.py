@@ -54,13 +54,21 @@ def smallest_count_guided(error_at: Callable[[int], float], proxy: Callable[[int
 
 
 def largest_step(error_at: Callable[[float], float], target: float, lo: float, hi: float,
-                 rel_tol: float = 0.02, max_iter: int = 30, guess: float | None = None) -> tuple[float, float]:
-    """Largest quantiser step in [lo, hi] whose error is <= target, by bisection in log space.
+                 rel_tol: float = 0.02, max_iter: int = 30, guess: float | None = None,
+                 close: float = 0.0) -> tuple[float, float]:
+    """Largest quantiser step in [lo, hi] whose error is <= target, to a factor 1 + rel_tol,
+    or the first step found whose error is within `close` (a share) under the target.
 
     Returns (step, error). The lower bracket always meets the target, so the answer
     errs towards less error; if even `lo` misses, `lo` is returned with its error
-    and the caller decides what to do. A `guess` inside [lo, hi] first narrows the
-    bracket by doubling or halving from it: fewer scores when the guess is close.
+    and the caller decides what to do. `guess`, a step inside [lo, hi], is tried first.
+
+    A quantiser adds noise of variance about proportional to step squared to the error
+    that remains at the finest step, so each round fits error^2 = a + b step^2 to the
+    scores nearest the target on either side, scores just below the step where the fit
+    meets the target, then one tolerance above what passed (or below what failed): a good
+    fit closes the bracket in two scores, where bisection in log space needs about a dozen.
+    A round that does not halve the bracket (in log space) is followed by a bisection.
     """
     scores: dict[float, float] = {}
 
@@ -69,30 +77,52 @@ def largest_step(error_at: Callable[[float], float], target: float, lo: float, h
             scores[step] = error_at(step)
         return scores[step]
 
-    if guess is not None and lo < guess < hi:
-        if score(guess) <= target:
-            lo = guess
-            while lo * 2 < hi and score(lo * 2) <= target:
-                lo *= 2
-            hi = min(hi, lo * 2)
-        else:
-            hi = guess
-            while hi / 2 > lo and score(hi / 2) > target:
-                hi /= 2
-            lo = max(lo, hi / 2)
     err_lo = score(lo)
     if err_lo > target:
         return lo, err_lo
-    err_hi = score(hi)
-    if err_hi <= target:
-        return hi, err_hi
+    top = hi  # not scored until a round asks for it
+    width = 1 + rel_tol
+    step = guess if guess is not None and lo < guess < hi else None
     for _ in range(max_iter):
-        if hi / lo <= 1 + rel_tol:
+        if hi / lo <= width:
             break
-        mid = math.sqrt(lo * hi)
-        err = score(mid)
-        if err <= target:
-            lo, err_lo = mid, err
-        else:
-            hi = mid
+        before = hi / lo
+        fitted = step is None
+        if fitted:
+            step = _where_fit_meets(scores, lo, hi, target)
+        trials = [min(max(step / math.sqrt(width), lo * width**0.25), hi / width**0.25) if hi != top else step]
+        if fitted:  # a fit is close: one tolerance past the first score, towards the other end
+            trials.append(None)
+        for trial in trials:
+            if trial is None:
+                trial = lo * width if lo == trials[0] else hi / width
+            if not lo < trial <= hi or (trial == hi and hi != top) or (trial == top and top in scores):
+                continue
+            if score(trial) <= target:
+                lo, err_lo = trial, score(trial)
+            else:
+                hi = trial
+        if lo == top or err_lo >= (1 - close) * target:
+            return lo, err_lo
+        narrowed = hi != top and math.log(hi / lo) <= 0.5 * math.log(before)
+        step = None if narrowed or hi == top or not fitted else math.sqrt(lo * hi)
     return lo, err_lo
+
+
+def _where_fit_meets(scores: dict[float, float], lo: float, hi: float, target: float) -> float:
+    """The step in (lo, hi) where error^2 = a + b step^2, fitted to the scores just below and
+    (if any) just above the target, meets it; the middle in log space if the fit fails."""
+    below = max((s for s in scores if scores[s] <= target), default=None)
+    above = min((s for s in scores if scores[s] > target), default=None)
+    points = [s for s in (below, above) if s is not None]
+    if len(points) < 2:  # only passing scores: fit through the finest one (the error's floor)
+        points = sorted(s for s in scores if scores[s] <= target)[:1] + points
+    (s0, e0), (s1, e1) = [(s, scores[s]) for s in points[:1] + points[-1:]]
+    if s1 > s0 and e1 > e0:
+        slope = (e1 * e1 - e0 * e0) / (s1 * s1 - s0 * s0)
+        squared = s0 * s0 + (target * target - e0 * e0) / slope
+        if squared > 0 and lo < math.sqrt(squared) < hi:
+            return math.sqrt(squared)
+        if squared > 0 and math.sqrt(squared) >= hi:
+            return hi
+    return math.sqrt(lo * hi)
