@@ -117,3 +117,12 @@ def test_invalid_parameters():
         DwtTransform("not-a-wavelet")
     with pytest.raises(ValueError):
         DwtTransform("db4", level=-1)
+
+
+@pytest.mark.parametrize("n_frames", SIZES)
+@pytest.mark.parametrize("frames", [slice(None), slice(None, None, 8), slice(3, None, 5)])
+def test_dct_synthesis_is_the_inverse_of_unit_coefficients(n_frames, frames):
+    transform = DctTransform()
+    rows = min(n_frames, 40)
+    expected = transform.inverse(np.eye(n_frames, rows), n_frames)[frames]
+    np.testing.assert_allclose(transform.synthesis(n_frames, rows, frames), expected, rtol=0, atol=1e-14)

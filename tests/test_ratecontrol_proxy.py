@@ -75,6 +75,25 @@ def test_a_root_track_error_is_measured_in_the_world(band):
     assert proxy(step, root_step, band) == pytest.approx(exact, rel=0.02)
 
 
+@pytest.mark.parametrize("frames", [97, 1000, 1009])  # 1009 is prime: its DCT is slow, so more rows are synthesised
+@pytest.mark.parametrize("band", [0.02, 0.1, 0.3, 1.0])
+def test_a_band_decoded_by_synthesis_measures_what_the_inverse_transform_does(frames, band):
+    rng = np.random.default_rng(frames)
+    transform = get_stage("transform", {"id": "dct"})
+    width = 3 * JOINTS + AXES
+    basis = orthonormal_basis(rng, width, 5)
+    poses = smooth_curves(rng, frames, width, 1.0)
+    root = np.column_stack([smooth_curves(rng, frames, 3, 2.0), smooth_curves(rng, frames, 1, 0.01)])
+    character = (poses[:, COLUMNS].reshape(frames, -1, 3), root[:, 3])
+    args = (transform.forward(poses @ basis), transform.forward(scale_root(root)), basis, COLUMNS,
+            poses - poses @ basis @ basis.T, transform, 0.2, character, slice(None, None, 8))
+    synthesised, inverted = CodingProxy(*args), CodingProxy(*args)
+    inverted._synthesised_rows = 0
+    assert synthesised.kept_rows(band) <= synthesised._synthesised_rows or band == 1.0
+    for step in (0.05, 0.5, 3.0):
+        assert synthesised(step, step / 4, band) == pytest.approx(inverted(step, step / 4, band), rel=1e-12)
+
+
 def test_the_truncation_proxy_is_the_error_of_the_truncated_poses():
     rng = np.random.default_rng(7)
     width = 3 * JOINTS + AXES

@@ -38,6 +38,14 @@ class DctTransform(Stage):
         coefs = _check_length(coefs, n_frames)
         return scipy.fft.idct(coefs, type=2, norm="ortho", axis=0)
 
+    def synthesis(self, n_frames: int, rows: int, frames=slice(None)) -> np.ndarray:
+        """(frames, rows): the inverse of each of the first `rows` unit coefficients at `frames`, from
+        the DCT-III formula. A few rows decode at a few frames cheaper this way than by `inverse`."""
+        t = np.arange(n_frames)[frames, None]
+        k = np.arange(rows)[None, :]
+        weights = np.where(k == 0, np.sqrt(1.0 / n_frames), np.sqrt(2.0 / n_frames))
+        return weights * np.cos(np.pi * k * (2 * t + 1) / (2 * n_frames))
+
 
 
 @register

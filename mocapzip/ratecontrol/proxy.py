@@ -13,12 +13,20 @@ factor measured by one true check carries over to the next step (`ratecontrol.en
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
+import scipy.fft
 
 from mocapzip.codec.clip_stream import unscale_root
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.motion.rotations import axis_rotation
+
+# A band of k rows is decoded at m measured frames by an (m x k) product instead of an inverse
+# transform of all n frames while m k <= COST n: about where the two cost the same (numpy's
+# BLAS, scipy's DCT); a length whose DCT is slow (large prime factors) moves that point.
+SYNTHESIS_COST = 64
+SLOW_LENGTH_SYNTHESIS_COST = 512
 
 
 class TruncationProxy:
@@ -86,6 +94,12 @@ class CodingProxy:
             turn = axis_rotation("y", np.pi / 2) - np.diag([0.0, 1.0, 0.0])
             self._lever = local[frames] @ turn
             self._to_character = np.swapaxes(axis_rotation("y", heading[frames]), -1, -2)
+        self._coef = pose_coef if root_coef is None else np.hstack([pose_coef, root_coef])
+        n_measured = len(range(*frames.indices(self.n_frames)))
+        fast = scipy.fft.next_fast_len(self.n_frames, real=True) == self.n_frames
+        cost = SYNTHESIS_COST if fast else SLOW_LENGTH_SYNTHESIS_COST
+        rows = min(cost * self.n_frames // n_measured, self.n_frames)
+        self._synthesised_rows = rows if hasattr(transform, "synthesis") else 0  # bands up to this many rows
 
     def kept_rows(self, band: float) -> int:
         """Rows a band keeps (as `code_clip` zeroes the rest)."""
@@ -93,18 +107,42 @@ class CodingProxy:
 
     def __call__(self, pose_step: float, root_step: float, band: float = 1.0) -> float:
         kept = self.kept_rows(band)
-        error = self._residual + self._curve_error(self.pose_coef, pose_step, kept) @ self.basis.T
+        curves = self._curve_error(pose_step, root_step, kept)
+        error = self._residual + curves[:, : self.pose_coef.shape[1]] @ self.basis.T
         if self.root_coef is None:
             return float(joint_errors(error, self.columns).mean())
-        root = unscale_root(self._curve_error(self.root_coef, root_step, kept))
+        root = unscale_root(curves[:, self.pose_coef.shape[1] :])
         shift = root[:, None, :3] @ self._to_character  # the root's translation error, character frame
         joints = joint_errors(error, self.columns, shift + root[:, 3, None, None] * self._lever)
         root_joint = np.sqrt((shift**2).sum(axis=2))
         return float((joints.sum() + root_joint.sum()) / (joints.size + root_joint.size))
 
-    def _curve_error(self, coef: np.ndarray, step: float, kept: int) -> np.ndarray:
-        """original - decoded of the curves at the measured frames."""
-        quantiser = UniformQuantiser(step, self.dead_zone)
-        error = coef.copy()
-        error[:kept] -= quantiser.dequantise(quantiser.quantise(coef[:kept]))
+    def _curve_error(self, pose_step: float, root_step: float, kept: int) -> np.ndarray:
+        """original - decoded of the pose curves (and the scaled root track's, as more columns) at the
+        measured frames. A narrow band keeps few rows: then the decoded curves are the synthesis
+        functions of those rows times their values, cheaper than a whole inverse transform."""
+        decoded = np.empty((kept, self._coef.shape[1]))
+        q = self.pose_coef.shape[1]
+        for columns, step in ((slice(0, q), pose_step), (slice(q, None), root_step)):
+            quantiser = UniformQuantiser(step, self.dead_zone)
+            decoded[:, columns] = quantiser.dequantise(quantiser.quantise(self._coef[:kept, columns]))
+        if kept <= self._synthesised_rows:
+            return self._original - self._synthesis(kept) @ decoded
+        error = self._coef.copy()
+        error[:kept] -= decoded
         return self.transform.inverse(error, self.n_frames)[self.frames]
+
+    @cached_property
+    def _original(self) -> np.ndarray:
+        """The curves at the measured frames, as the transform gives them back."""
+        return self.transform.inverse(self._coef, self.n_frames)[self.frames]
+
+    def _synthesis(self, kept: int) -> np.ndarray:
+        """(measured frames, kept): the decoded curves of each of the first `kept` unit coefficients."""
+        if self._synthesis_of is None or self._synthesis_of.shape[1] < kept:
+            rows = min(max(kept, 2 * (0 if self._synthesis_of is None else self._synthesis_of.shape[1])),
+                       self._synthesised_rows)
+            self._synthesis_of = self.transform.synthesis(self.n_frames, rows, self.frames)
+        return self._synthesis_of[:, :kept]
+
+    _synthesis_of: np.ndarray | None = None
