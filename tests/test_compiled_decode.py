@@ -129,6 +129,15 @@ def test_decoder_follows_the_stored_flips(shared_data, name):
     np.testing.assert_allclose(decoded, numpy_decoded, rtol=0, atol=VALUES_TOLERANCE)
 
 
+@pytest.mark.parametrize("name", sorted(CLIPS))
+def test_forward_kinematics_matches_numpy(shared_data, name):
+    """The original joint positions a clip is scored against come from the compiled kinematics."""
+    clip = load(shared_data, name, "aligned", True, frames=2000)
+    expected = forward(clip.model, clip.motion.values, clip.layout).positions
+    np.testing.assert_allclose(clip.positions, expected, rtol=0, atol=1e-9)
+    assert clip.positions.shape == expected.shape
+
+
 def test_rounding_as_written_matches_numpy():
     rng = np.random.default_rng(7)
     values = np.concatenate([rng.normal(0, 1, 4000) * 10.0 ** rng.integers(-6, 6, 4000),

@@ -18,7 +18,6 @@ from mocapzip.formats.amc import Motion, read_amc
 from mocapzip.formats.asf import read_asf
 from mocapzip.inputs.discover import ClipSource
 from mocapzip.motion import compiled
-from mocapzip.motion.kinematics import forward
 from mocapzip.progress import progress
 from mocapzip.representations import get_representation
 from mocapzip.representations.base import Encoded
@@ -164,12 +163,14 @@ class ClipReader:
         skeleton, model = self._skeletons[source.asf]
         lossless = self.representation_name is None
         motion = read_amc(source.amc, skeleton, partial_last_frame="error" if lossless else "drop")
-        encoded = positions = None
+        encoded = None
         if self.representation_name is not None:
             encoded = get_representation(self.representation_name, self.axes_from_positions).forward(model, motion)
-            positions = forward(model, motion.values, motion).positions
-        return LoadedClip(source, model, motion, encoded, self.representation_name, positions,
-                          self.axis_weight_cm, self.axes_from_positions)
+        clip = LoadedClip(source, model, motion, encoded, self.representation_name, None, self.axis_weight_cm,
+                          self.axes_from_positions)
+        if encoded is not None:  # the joints the error is measured against, by the check's own kinematics
+            clip.positions = clip.decode_tail.positions(motion.values)
+        return clip
 
     def load(self, source: ClipSource) -> LoadedClip:
         """The kept clip, or the clip read again."""
