@@ -31,7 +31,7 @@ POW10 = np.power(10.0, np.arange(-300, 301).astype(np.float64))  # as round_as_w
 
 # ----------------------------------------------------------------------------- scalar helpers
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _npmod(a, b):
     """numpy's float remainder (npy_divmod): fmod, moved to the sign of b."""
     m = np.fmod(a, b)
@@ -43,7 +43,7 @@ def _npmod(a, b):
     return m
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mod2pi(y):
     """numpy's y % (2 pi), bit for bit: fmod is exact, so within one period either side of
     [0, 2 pi) the result is y, y + 2 pi or y - 2 pi (exact by Sterbenz) without calling fmod."""
@@ -57,13 +57,13 @@ def _mod2pi(y):
     return _npmod(y, TWO_PI)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _wrap(x):
     """rotations.wrap: (x + pi) % (2 pi) - pi."""
     return _mod2pi(x + PI) - PI
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _axis_rot(k, angle, out):
     """rotations.axis_rotation (row convention) into out (3, 3)."""
     b = (k + 1) % 3
@@ -80,7 +80,7 @@ def _axis_rot(k, angle, out):
     out[c, b] = -si
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mm(a, b, out):
     """out = a @ b (3x3), sums in index order."""
     for i in range(3):
@@ -91,7 +91,7 @@ def _mm(a, b, out):
             out[i, k] = a0 * b[0, k] + a1 * b[1, k] + a2 * b[2, k]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mtm(a, b, out):
     """out = a^T @ b (3x3)."""
     for i in range(3):
@@ -102,7 +102,7 @@ def _mtm(a, b, out):
             out[i, k] = a0 * b[0, k] + a1 * b[1, k] + a2 * b[2, k]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mmt(a, b, out):
     """out = a @ b^T (3x3)."""
     for i in range(3):
@@ -113,7 +113,7 @@ def _mmt(a, b, out):
             out[i, k] = a0 * b[k, 0] + a1 * b[k, 1] + a2 * b[k, 2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _angle_about_m(k, m):
     """rotations.angle_about for one matrix."""
     b = (k + 1) % 3
@@ -345,7 +345,7 @@ def _euler1(locals_j, a, out_angles):
 
 # ----------------------------------------------------------------------------- decode tail
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _orthonormal(x0, x1, x2, y0, y1, y2, out):
     """rotations.orthonormal_frame for one (x, y) pair: rows x, y', z."""
     nx = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
@@ -623,7 +623,7 @@ def round_as_written(values, fixed, digits):
                 values[f, c] = np.rint(v * scale) / scale
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
               to_rad, cm_per_unit, W, pos):
     """kinematics.forward for one frame: bone frames W (J, 3, 3) and positions (J, 3)."""
