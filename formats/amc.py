@@ -31,6 +31,8 @@ Writing remembers how the source wrote its numbers and lines (`AmcStyle`): CMU f
 written back with 6 significant digits and 3-digit exponents, Vicon Blade files with 6 fixed
 decimals, so values come back without loss; every file of the shared data set except the
 truncated golf_01.amc comes back byte for byte (line ends, header and spacing included).
+Numbers are written in compiled code (`amc_compiled.format_frames`), exactly as Python's `%`
+operator writes them.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ from mocapzip.formats.amc_compiled import (
     STAT_MAX_SIG,
     STAT_MIN_EXP_DIGITS,
     STAT_SAME_DECIMALS,
+    format_frames,
     scan_frames,
     scan_tokens,
 )
@@ -559,20 +562,18 @@ def _check_angles(motion: Motion, skeleton, path) -> None:
 
 # --------------------------------------------------------------------------- writing
 
-_FRAMES_PER_CHUNK = 4096
-
-
 def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | None = None) -> str:
     """AMC text of `motion`: header lines, then every frame in the source's bone order.
 
     Numbers and line ends follow `style` (default: `motion.style`, what `read_amc` detected, so a
     file read and written again keeps its precision). `digits` overrides with that many
-    significant digits (`%.<digits>g`).
+    significant digits (`%.<digits>g`). The text is exactly what Python's `%` operator gives
+    (`amc_compiled.format_frames` writes it; the numbers it leaves are formatted here).
     """
     style = style or getattr(motion, "style", None) or AmcStyle()
     if digits is not None:
         style = replace(style, notation="g", digits=int(digits))
-    values = np.asarray(motion.values, dtype=np.float64)
+    values = np.ascontiguousarray(motion.values, dtype=np.float64)
     frames = np.asarray(motion.frame_numbers)
     n_frames = values.shape[0] if values.ndim == 2 else -1
     if values.ndim != 2 or values.shape[1] != sum(motion.counts) or frames.shape != (n_frames,):
@@ -587,42 +588,52 @@ def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | N
 
     nl = style.newline
     head = "".join(line + (style.header_newline or nl) for line in motion.header)
-    fmt = style.number_format
-    layout = ["%d", style.frame_newline or nl]
-    for bone, count in zip(motion.bones, motion.counts):
-        layout.append(bone.replace("%", "%%"))
-        if count:
-            layout.append(style.name_separator + " ".join([fmt] * count))
-        layout.append(nl)
-    template = "".join(layout)
-
-    pieces = [head]
-    for lo in range(0, n_frames, _FRAMES_PER_CHUNK):
-        hi = min(lo + _FRAMES_PER_CHUNK, n_frames)
-        rows = np.empty((hi - lo, values.shape[1] + 1))
-        rows[:, 0] = frames[lo:hi]
-        rows[:, 1:] = values[lo:hi]
-        pieces.append((template * (hi - lo)) % tuple(rows.ravel().tolist()))
-    text = "".join(pieces[1:])
-    if style.notation == "g" and style.exponent_digits != 2 and "e" in text:
-        text = _widen_exponents(text, values, motion.bones, style.exponent_digits)
-    text = head + text
+    names = [_widen_exponents(bone, style).encode("utf-8", "surrogatepass") for bone in motion.bones]
+    frames = frames.astype(np.float64)  # '%d' of a float64, as frame numbers were always written
+    text, hard = format_frames(
+        values,
+        frames,
+        np.frombuffer(b"".join(names), np.uint8),
+        np.cumsum([len(name) for name in names], dtype=np.int64),
+        np.array(motion.counts, dtype=np.int64),
+        np.frombuffer(style.name_separator.encode(), np.uint8),
+        np.frombuffer(nl.encode(), np.uint8),
+        np.frombuffer((style.frame_newline or nl).encode(), np.uint8),
+        style.notation == "f",
+        int(style.digits),
+        max(2, style.exponent_digits),
+    )
+    text = text.tobytes()
+    if hard.size:
+        text = _with_python_numbers(text, hard, values, frames, style)
+    text = head + text.decode("utf-8", "surrogatepass")
     if not style.final_newline and text.endswith(nl):
         text = text[: -len(nl)]
     return text
 
 
-def _widen_exponents(text: str, values: np.ndarray, bones, width: int) -> str:
-    """'1e-05' -> '1e-005' (width 3), as the Windows C library writes them."""
-    tiny = np.abs(values[values != 0])
-    plain = (
-        width == 3
-        and not any("e+" in b or "e-" in b for b in bones)
-        and (tiny.size == 0 or (tiny.min() >= 1e-99 and tiny.max() < 1e100))
-    )
-    if plain:  # every exponent has exactly two digits: a plain replace is enough (and fast)
-        return text.replace("e-", "e-0").replace("e+", "e+0")
-    return re.sub(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])", lambda m: f"e{m[1]}{m[2].zfill(width)}", text)
+def _with_python_numbers(text: bytes, hard: np.ndarray, values: np.ndarray, frames: np.ndarray, style: AmcStyle) -> bytes:
+    """`text` with the numbers `format_frames` left to Python (`hard`: offset, item) written in."""
+    per_row = values.shape[1] + 1
+    pieces, done = [], 0
+    for at, item in hard.tolist():
+        row, column = divmod(item, per_row)
+        number_ = "%d" % float(frames[row]) if column == 0 else style.number_format % float(values[row, column - 1])
+        pieces += [text[done:at], _widen_exponents(number_, style).encode()]
+        done = at
+    pieces.append(text[done:])
+    return b"".join(pieces)
+
+
+_EXPONENT = re.compile(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])")
+
+
+def _widen_exponents(text: str, style: AmcStyle) -> str:
+    """'1e-05' -> '1e-005' (exponent_digits 3), as the Windows C library writes them. Bone
+    names that look like exponents are widened too, as they always were."""
+    if style.notation != "g" or style.exponent_digits == 2:
+        return text
+    return _EXPONENT.sub(lambda m: f"e{m[1]}{m[2].zfill(style.exponent_digits)}", text)
 
 
 def write_amc(motion: Motion, path: str | os.PathLike, digits: int | None = None, *, style: AmcStyle | None = None) -> None:

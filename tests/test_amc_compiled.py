@@ -1,12 +1,14 @@
-"""The compiled AMC reading (formats/amc_compiled.py) against plain Python: float() and the
-number grammar; on every real AMC file, on damaged files and on random words. A few real
-files in the fast tier, all of them under `slow`."""
+"""The compiled AMC loops (formats/amc_compiled.py) against plain Python: float() and the
+number grammar for reading, the `%` operator for writing; on every real AMC file, on damaged
+files and on random values. A few real files in the fast tier, all of them under `slow`."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 import random
+import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -15,10 +17,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import hostile_inputs
-from mocapzip.formats.amc import _number_style, _parse_exact, _parse_fast, parse_amc
+from mocapzip.formats.amc import AmcStyle, Motion, _number_style, _parse_exact, _parse_fast, format_amc, parse_amc
 from mocapzip.formats.amc_compiled import (
     STAT_ANY_EXP,
     STAT_MIN_EXP_DIGITS,
+    format_frames,
     scan_tokens,
 )
 from mocapzip.formats.errors import MocapFormatError
@@ -74,6 +77,24 @@ def comparable(stats: np.ndarray) -> list[int]:
     if not out[STAT_ANY_EXP]:
         out[STAT_MIN_EXP_DIGITS] = 0
     return out
+
+
+def python_text(motion: Motion, style: AmcStyle) -> str:
+    """format_amc's text as Python's `%` operator writes it: the whole frame layout as one format."""
+    nl = style.newline
+    head = "".join(line + (style.header_newline or nl) for line in motion.header)
+    layout = ["%d", style.frame_newline or nl]
+    for bone, count in zip(motion.bones, motion.counts):
+        layout.append(bone.replace("%", "%%"))
+        if count:
+            layout.append(style.name_separator + " ".join([style.number_format] * count))
+        layout.append(nl)
+    rows = np.column_stack([np.asarray(motion.frame_numbers, dtype=float), motion.values])
+    text = "".join(layout) * len(rows) % tuple(rows.ravel().tolist())
+    if style.notation == "g" and style.exponent_digits != 2:
+        text = re.sub(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])", lambda m: f"e{m[1]}{m[2].zfill(style.exponent_digits)}", text)
+    text = head + text
+    return text if style.final_newline or not text.endswith(nl) else text[: -len(nl)]
 
 
 def same_bits(a, b) -> bool:
@@ -222,3 +243,86 @@ def test_mutated_real_files_take_the_fast_path_only_where_the_exact_path_agrees(
         else:
             data[at : at + rng.randint(1, 8)] = rng.choice([b"", *PIECES])
     fast_and_exact_agree(bytes(data))
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def written_styles(style: AmcStyle) -> list[AmcStyle]:
+    return [style, dataclasses.replace(style, notation="g", digits=6, exponent_digits=3),
+            dataclasses.replace(style, notation="f", digits=6), dataclasses.replace(style, notation="g", digits=9, exponent_digits=2)]
+
+
+@pytest.mark.parametrize("rel", EVERY_FILE)
+def test_writing_real_files_gives_pythons_text(rel):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # golf_01.amc: its last frame is cut short and dropped
+        motion = parse_amc((DATA / rel).read_bytes(), rel)
+    for style in written_styles(motion.style):
+        assert format_amc(motion, style=style) == python_text(motion, style), style
+    if rel in QUICK:  # 17 digits: every number is left to Python
+        style = dataclasses.replace(motion.style, notation="g", digits=17)
+        assert format_amc(motion, style=style) == python_text(motion, style)
+
+
+def halfway_cases() -> list[float]:
+    """Values on and next to a rounding half or a power of ten, where digits carry."""
+    out = []
+    for base in (0.5, 1.5, 2.5, 9.5, 123456.5, 999999.5, 9.999995, 99999.95, 1.0000005, 0.00012345650000000001,
+                 1e5, 1e6, 1e-4, 1e-5, 9.9999950000000001e-5, 0.1 + 0.2, 2.0**52, 2.0**53, 4503599627370495.5):
+        for scale in (1.0, 10.0, 100.0, 1e-3, 1e3, 1e-7, 1e7):
+            x = base * scale
+            out += [x, -x, np.nextafter(x, np.inf), np.nextafter(x, -np.inf)]
+    return out
+
+
+EDGES = [0.0, -0.0, 5e-324, 2.2250738585072014e-308, 1e-300, 1e22, 1e23, 1.7976931348623157e308, -1e300]
+STYLES = [("g", d, w) for d in (1, 2, 3, 6, 7, 10, 15, 16, 17) for w in (1, 2, 3)] + [("f", d, 2) for d in (0, 1, 3, 6, 17, 25)]
+
+
+@pytest.mark.parametrize("notation, digits, width", STYLES)
+def test_writing_random_values_gives_pythons_text(notation, digits, width):
+    rng = np.random.default_rng(digits * 10 + width)
+    magnitudes = 10.0 ** rng.uniform(-26, 26, 3000) * rng.choice([-1.0, 1.0], 3000)
+    everyday = np.concatenate([rng.normal(0, 100, 2000), np.round(rng.normal(0, 100, 1000), 3), rng.uniform(-1e-5, 1e5, 1000)])
+    values = np.concatenate([magnitudes, everyday, halfway_cases(), EDGES]).reshape(-1, 1)
+    motion = Motion(["v"], [1], values, np.arange(len(values)), [])
+    style = AmcStyle(notation=notation, digits=digits, exponent_digits=width)
+    assert format_amc(motion, style=style) == python_text(motion, style)
+
+
+def test_writing_leaves_only_the_hard_numbers_to_python():
+    """Halves, 17 digits and scales beyond 1e22 go to Python; everyday values never do."""
+    def left(values, fixed, digits):
+        values = np.asarray(values, dtype=np.float64).reshape(-1, 1)
+        one = np.array([1], dtype=np.int64)
+        newline = np.frombuffer(b"\n", np.uint8)
+        _, hard = format_frames(values, np.arange(len(values), dtype=np.float64), np.frombuffer(b"v", np.uint8), one,
+                                one, np.frombuffer(b" ", np.uint8), newline, newline, fixed, digits, 2)
+        return [item // 2 for _, item in hard.tolist()]  # item: row * 2 + 1 for the row's value
+    everyday = np.random.default_rng(0).normal(0, 100, 10_000)
+    assert left(everyday, False, 6) == [] and left(everyday, True, 6) == []
+    assert left([1.0, 123456.5, 2.0, 1e-30, 0.5], False, 6) == [1, 3]  # a half of the 6th digit, a scale of 1e35
+    assert left([0.5, 0.25, 1e17], True, 0) == [0, 2]  # 0.5 is a half; 1e17 is beyond 2**52
+    assert left([1.0, 2.0], False, 17) == [0, 1]
+
+
+@settings(max_examples=100, deadline=None)
+@given(values=st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=1, max_size=30),
+       notation=st.sampled_from(["g", "f"]), digits=st.integers(0, 17), width=st.integers(1, 4))
+def test_hypothesis_writing_gives_pythons_text(values, notation, digits, width):
+    style = AmcStyle(notation=notation, digits=max(digits, notation == "g"), exponent_digits=width)
+    motion = Motion(["a", "b"], [len(values) - len(values) // 2, len(values) // 2], np.array([values]), np.array([7]), [])
+    assert format_amc(motion, style=style) == python_text(motion, style)
+
+
+def test_writing_frame_numbers_and_bone_names_as_python_did():
+    """Frame numbers go through '%d' as floats; names are written as they are, '%' and all,
+    and widened where they look like exponents (as the text always was)."""
+    values = np.array([[1e-5, 2.0], [-0.0, 1e100]])
+    names = ["x1e-5", "f\u00fcr%d"]
+    for frames in (np.array([2**62 + 3, -7]), np.array([1.5, -0.5]), np.array([0, 10**9])):
+        for style in (AmcStyle(exponent_digits=3), AmcStyle(exponent_digits=1), AmcStyle(notation="f", digits=2)):
+            motion = Motion(names, [1, 1], values, frames, ["# h\u00e9ader"])
+            assert format_amc(motion, style=style) == python_text(motion, style)
+    assert "x1e-005 1e-005\n" in format_amc(Motion(names, [1, 1], values, np.array([1, 2])), style=AmcStyle(exponent_digits=3))
