@@ -6,9 +6,9 @@ carries them, so a written file keeps the source's layout.
 
 Reading has two paths that accept exactly the same files and give the same numbers:
 
-* a vectorised fast path for the usual layout (every frame lists the first frame's bones in
-  the same order, one bone per line): the whole file is tokenised and converted with NumPy,
-  no Python loop per value or per line;
+* a fast path for the usual layout (every frame lists the first frame's bones in the same
+  order, one bone per line): one compiled pass over the frames checks the layout and
+  converts every value (`amc_compiled.scan_frames`), no Python loop per value or per line;
 * an exact line-by-line path for everything else (bones in varying order, comments or blank
   lines between frames, a truncated last frame) and for damaged files, where it names the
   file, line and fault in a `MocapFormatError`.
@@ -24,13 +24,15 @@ anywhere else is an error.
 
 Size limits (`mocapzip.limits`) are checked before the work they bound: a file larger than
 `MAX_AMC_BYTES` is refused before it is read, values per frame when the first frame is read,
-and frames and frames x values before any value is converted. With a skeleton, the angles of
-a clip in radians must lie within `MAX_RADIANS` (see `_check_angles`).
+and frames and frames x values before more values than they allow are converted. With a
+skeleton, the angles of a clip in radians must lie within `MAX_RADIANS` (see `_check_angles`).
 
 Writing remembers how the source wrote its numbers and lines (`AmcStyle`): CMU files are
 written back with 6 significant digits and 3-digit exponents, Vicon Blade files with 6 fixed
 decimals, so values come back without loss; every file of the shared data set except the
 truncated golf_01.amc comes back byte for byte (line ends, header and spacing included).
+Numbers are written in compiled code (`amc_compiled.format_frames`), exactly as Python's `%`
+operator writes them.
 """
 
 from __future__ import annotations
@@ -52,9 +54,19 @@ from mocapzip.formats.text import (
     detect_encoding,
     number,
     open_regular_file,
-    padded_buffer,
-    parse_number_tokens,
-    token_bounds,
+)
+from mocapzip.formats.amc_compiled import (
+    LAYOUT_OK,
+    STAT_ALL_DOT,
+    STAT_ANY_EXP,
+    STAT_COUNT,
+    STAT_FIRST_DECIMALS,
+    STAT_MAX_SIG,
+    STAT_MIN_EXP_DIGITS,
+    STAT_SAME_DECIMALS,
+    format_frames,
+    scan_frames,
+    scan_tokens,
 )
 
 __all__ = ["AmcStyle", "Motion", "read_amc", "parse_amc", "format_amc", "write_amc"]
@@ -230,8 +242,6 @@ def _parse_fast(data: bytes, path, encoding):
     body = data[pos:]
     final_newline = body.endswith(b"\n")
     body = body.rstrip(WHITESPACE)
-    if b"\r" in body and body.count(b"\r") != body.count(b"\r\n"):
-        return None  # a lone CR ends a line too: exact path
 
     # First frame, in Python: bone names, value counts, line style.
     lines = body.split(b"\n", _MAX_FAST_BONES + 1)
@@ -262,69 +272,37 @@ def _parse_fast(data: bytes, path, encoding):
     if n_bones == 0 or n_values > MAX_VALUES_PER_FRAME:
         return None  # the exact path names the fault
 
-    buf = padded_buffer(body)
-    starts, ends = token_bounds(buf)
-    width = 1 + n_bones + n_values
-    if len(starts) % width:
-        return None  # irregular or truncated: exact path
-    n_frames = len(starts) // width
-    starts = starts.reshape(n_frames, width)
-    ends = ends.reshape(n_frames, width)
-    name_cols = np.cumsum([1] + [c + 1 for c in counts[:-1]])
-    value_cols = np.concatenate([np.arange(nc + 1, nc + 1 + c) for nc, c in zip(name_cols, counts)]).astype(int)
-
-    # One frame number or bone per line: every frame number and bone name directly follows a
-    # newline, and the body has no other newline.
-    line_starts = starts[:, np.concatenate([[0], name_cols])].ravel()
-    if body.count(b"\n") != line_starts.size - 1 or not np.all(buf[line_starts[1:] - 1] == 10):
-        return None
-
-    # Bone names at their places, byte for byte.
-    longest = max(len(n) for n in name_bytes)
-    expected = np.zeros((n_bones, longest), dtype=np.uint8)
-    mask = np.zeros((n_bones, longest), dtype=bool)
-    for i, name in enumerate(name_bytes):
-        expected[i, : len(name)] = np.frombuffer(name, dtype=np.uint8)
-        mask[i, : len(name)] = True
-    lengths = np.array([len(n) for n in name_bytes])
-    name_starts = starts[:, name_cols]
-    if not np.array_equal(ends[:, name_cols] - name_starts, np.broadcast_to(lengths, name_starts.shape)):
-        return None
-    windows = np.lib.stride_tricks.as_strided(buf, shape=(buf.size - longest, longest), strides=(1, 1))
-    if not np.all((windows[name_starts] == expected) | ~mask):
-        return None
-
-    # Frame numbers: digits only, consecutive.
-    frame_block = parse_number_tokens(buf, starts[:, 0], ends[:, 0])
-    frame_chars = buf[starts[:, 0]]
-    if not (frame_block.ok.all() and not frame_block.has_dot.any() and not frame_block.has_exp.any()):
-        return None
-    if np.any((frame_chars < 48) | (frame_chars > 57)):
-        return None
-    frame_numbers = frame_block.values.astype(np.int64)
-    if (n_frames > 1 and not np.all(np.diff(frame_numbers) == 1)) or frame_numbers[-1] > MAX_FRAME_NUMBER:
-        return None
+    # The rest of the body, compiled: layout, frame numbers, bone names and values.
     allowed = _frames_allowed(n_values)
+    verdict, first, n_frames, values, faults, left, stats = scan_frames(
+        np.frombuffer(body, np.uint8),
+        np.frombuffer(b"".join(name_bytes), np.uint8),
+        np.cumsum([len(name) for name in name_bytes], dtype=np.int64),
+        np.array(counts, np.int64),
+        allowed,
+        MAX_FRAME_NUMBER,
+        MAX_ABS_VALUE,
+    )
+    if verdict != LAYOUT_OK:
+        return None
     if n_frames > allowed:
-        raise _too_many_frames(n_values, int(frame_numbers[allowed]), path, len(header) + 1 + allowed * (1 + n_bones))
-
-    # Values.
-    block = parse_number_tokens(buf, starts[:, value_cols].ravel(), ends[:, value_cols].ravel())
-    if not block.ok.all():
-        flat_starts = starts[:, value_cols].ravel()
-        flat_ends = ends[:, value_cols].ravel()
-        for i in np.flatnonzero(~block.ok):
-            raw = buf[flat_starts[i] : flat_ends[i]].tobytes()
+        raise _too_many_frames(n_values, first + allowed, path, len(header) + 1 + allowed * (1 + n_bones))
+    if faults:
+        return None
+    if left:  # long numbers, left to float()
+        words = body.split()
+        width = 1 + n_bones + n_values
+        value_words = np.setdiff1d(np.arange(1, width), np.cumsum([1] + [c + 1 for c in counts[:-1]]))
+        for i in np.flatnonzero(np.isnan(values)):
+            frame, column = divmod(int(i), n_values)
             try:
-                value = number(raw, path, None)
+                values.flat[i] = number(words[frame * width + value_words[column]], path, None)
             except MocapFormatError:
                 return None
-            block.store(i, value, raw)
-    if not np.all(np.abs(block.values) <= MAX_ABS_VALUE):
-        return None
+    frame_numbers = np.arange(first, first + n_frames, dtype=np.int64)
 
     style = AmcStyle(
-        **_number_style(block),
+        **_number_style(stats),
         name_separator=_separator(separator),
         newline=newline,
         header_newline=header_newline if header_newline not in (None, newline) else None,
@@ -332,7 +310,6 @@ def _parse_fast(data: bytes, path, encoding):
         final_newline=final_newline,
         encoding=encoding,
     )
-    values = block.values.reshape(n_frames, n_values)
     first_lines = {b: len(header) + 2 + i for i, b in enumerate(bones)}
     return Motion(bones, counts, values, frame_numbers, header, path, style), first_lines
 
@@ -341,22 +318,17 @@ def _separator(text: str | None) -> str:
     return text if text and not text.strip(" \t") else " "
 
 
-def _number_style(block) -> dict:
-    """notation, digits and exponent width that write every value of `block` back unchanged."""
-    if block.values.size == 0:
+def _number_style(stats) -> dict:
+    """notation, digits and exponent width that write every value counted in `stats` (from
+    `amc_compiled`) back unchanged."""
+    if stats[STAT_COUNT] == 0:
         return {}
-    max_sig = block.max_significant_digits()
-    if (
-        block.has_dot.all()
-        and not block.has_exp.any()
-        and np.all(block.decimals == block.decimals[0])
-        and max_sig <= 15
-        and block.decimals[0] <= 17
-    ):
-        return {"notation": "f", "digits": int(block.decimals[0])}
+    max_sig = int(stats[STAT_MAX_SIG])
+    decimals = int(stats[STAT_FIRST_DECIMALS])
+    if stats[STAT_ALL_DOT] and not stats[STAT_ANY_EXP] and stats[STAT_SAME_DECIMALS] and max_sig <= 15 and decimals <= 17:
+        return {"notation": "f", "digits": decimals}
     digits = max(6, max_sig) if max_sig <= 15 else 17
-    exp_digits = block.exp_digits[block.has_exp]
-    exponent_digits = 3 if exp_digits.size and exp_digits.min() >= 3 else 2
+    exponent_digits = 3 if stats[STAT_ANY_EXP] and stats[STAT_MIN_EXP_DIGITS] >= 3 else 2
     return {"notation": "g", "digits": digits, "exponent_digits": exponent_digits}
 
 
@@ -516,20 +488,17 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, partial_last_frame:
     counts_arr = np.array(counts, dtype=np.int64)
     tokens = [w for rows in frame_rows for words in rows for w in words]
     token_lines = np.repeat(np.array(frame_linenos, dtype=np.int64).reshape(-1), np.tile(counts_arr, n_frames))
-    buf = padded_buffer(b" ".join(tokens))
-    starts, ends = token_bounds(buf)
-    block = parse_number_tokens(buf, starts, ends)
-    for k in np.flatnonzero(~block.ok):
-        raw = tokens[k]
-        block.store(k, number(raw, path, int(token_lines[k])), raw)
-    bad = np.flatnonzero(~(np.abs(block.values) <= MAX_ABS_VALUE))
+    values, stats = scan_tokens(np.frombuffer(b" ".join(tokens), np.uint8), len(tokens))
+    for k in np.flatnonzero(np.isnan(values)):  # invalid, or left to float()
+        values[k] = number(tokens[k], path, int(token_lines[k]))
+    bad = np.flatnonzero(~(np.abs(values) <= MAX_ABS_VALUE))
     if bad.size:
         k = int(bad[0])
         number(tokens[k], path, int(token_lines[k]))  # raises with the reason
 
     last_ending = data[-1:]
     style = AmcStyle(
-        **_number_style(block),
+        **_number_style(stats),
         name_separator=_separator(separator),
         newline=newline,
         header_newline=header_newline if header_newline not in (None, newline) else None,
@@ -537,7 +506,7 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, partial_last_frame:
         final_newline=last_ending in (b"\n", b"\r"),
         encoding=encoding,
     )
-    values = block.values.reshape(n_frames, int(counts_arr.sum()))
+    values = values.reshape(n_frames, int(counts_arr.sum()))
     motion = Motion(bones, counts, values, np.array(frame_numbers, dtype=np.int64), header, path, style, dropped)
     return motion, first_lines
 
@@ -593,20 +562,18 @@ def _check_angles(motion: Motion, skeleton, path) -> None:
 
 # --------------------------------------------------------------------------- writing
 
-_FRAMES_PER_CHUNK = 4096
-
-
 def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | None = None) -> str:
     """AMC text of `motion`: header lines, then every frame in the source's bone order.
 
     Numbers and line ends follow `style` (default: `motion.style`, what `read_amc` detected, so a
     file read and written again keeps its precision). `digits` overrides with that many
-    significant digits (`%.<digits>g`).
+    significant digits (`%.<digits>g`). The text is exactly what Python's `%` operator gives
+    (`amc_compiled.format_frames` writes it; the numbers it leaves are formatted here).
     """
     style = style or getattr(motion, "style", None) or AmcStyle()
     if digits is not None:
         style = replace(style, notation="g", digits=int(digits))
-    values = np.asarray(motion.values, dtype=np.float64)
+    values = np.ascontiguousarray(motion.values, dtype=np.float64)
     frames = np.asarray(motion.frame_numbers)
     n_frames = values.shape[0] if values.ndim == 2 else -1
     if values.ndim != 2 or values.shape[1] != sum(motion.counts) or frames.shape != (n_frames,):
@@ -621,42 +588,52 @@ def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | N
 
     nl = style.newline
     head = "".join(line + (style.header_newline or nl) for line in motion.header)
-    fmt = style.number_format
-    layout = ["%d", style.frame_newline or nl]
-    for bone, count in zip(motion.bones, motion.counts):
-        layout.append(bone.replace("%", "%%"))
-        if count:
-            layout.append(style.name_separator + " ".join([fmt] * count))
-        layout.append(nl)
-    template = "".join(layout)
-
-    pieces = [head]
-    for lo in range(0, n_frames, _FRAMES_PER_CHUNK):
-        hi = min(lo + _FRAMES_PER_CHUNK, n_frames)
-        rows = np.empty((hi - lo, values.shape[1] + 1))
-        rows[:, 0] = frames[lo:hi]
-        rows[:, 1:] = values[lo:hi]
-        pieces.append((template * (hi - lo)) % tuple(rows.ravel().tolist()))
-    text = "".join(pieces[1:])
-    if style.notation == "g" and style.exponent_digits != 2 and "e" in text:
-        text = _widen_exponents(text, values, motion.bones, style.exponent_digits)
-    text = head + text
+    names = [_widen_exponents(bone, style).encode("utf-8", "surrogatepass") for bone in motion.bones]
+    frames = frames.astype(np.float64)  # '%d' of a float64, as frame numbers were always written
+    text, hard = format_frames(
+        values,
+        frames,
+        np.frombuffer(b"".join(names), np.uint8),
+        np.cumsum([len(name) for name in names], dtype=np.int64),
+        np.array(motion.counts, dtype=np.int64),
+        np.frombuffer(style.name_separator.encode(), np.uint8),
+        np.frombuffer(nl.encode(), np.uint8),
+        np.frombuffer((style.frame_newline or nl).encode(), np.uint8),
+        style.notation == "f",
+        int(style.digits),
+        max(2, style.exponent_digits),
+    )
+    text = text.tobytes()
+    if hard.size:
+        text = _with_python_numbers(text, hard, values, frames, style)
+    text = head + text.decode("utf-8", "surrogatepass")
     if not style.final_newline and text.endswith(nl):
         text = text[: -len(nl)]
     return text
 
 
-def _widen_exponents(text: str, values: np.ndarray, bones, width: int) -> str:
-    """'1e-05' -> '1e-005' (width 3), as the Windows C library writes them."""
-    tiny = np.abs(values[values != 0])
-    plain = (
-        width == 3
-        and not any("e+" in b or "e-" in b for b in bones)
-        and (tiny.size == 0 or (tiny.min() >= 1e-99 and tiny.max() < 1e100))
-    )
-    if plain:  # every exponent has exactly two digits: a plain replace is enough (and fast)
-        return text.replace("e-", "e-0").replace("e+", "e+0")
-    return re.sub(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])", lambda m: f"e{m[1]}{m[2].zfill(width)}", text)
+def _with_python_numbers(text: bytes, hard: np.ndarray, values: np.ndarray, frames: np.ndarray, style: AmcStyle) -> bytes:
+    """`text` with the numbers `format_frames` left to Python (`hard`: offset, item) written in."""
+    per_row = values.shape[1] + 1
+    pieces, done = [], 0
+    for at, item in hard.tolist():
+        row, column = divmod(item, per_row)
+        number_ = "%d" % float(frames[row]) if column == 0 else style.number_format % float(values[row, column - 1])
+        pieces += [text[done:at], _widen_exponents(number_, style).encode()]
+        done = at
+    pieces.append(text[done:])
+    return b"".join(pieces)
+
+
+_EXPONENT = re.compile(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])")
+
+
+def _widen_exponents(text: str, style: AmcStyle) -> str:
+    """'1e-05' -> '1e-005' (exponent_digits 3), as the Windows C library writes them. Bone
+    names that look like exponents are widened too, as they always were."""
+    if style.notation != "g" or style.exponent_digits == 2:
+        return text
+    return _EXPONENT.sub(lambda m: f"e{m[1]}{m[2].zfill(style.exponent_digits)}", text)
 
 
 def write_amc(motion: Motion, path: str | os.PathLike, digits: int | None = None, *, style: AmcStyle | None = None) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import warnings
 from pathlib import Path
 
@@ -25,7 +24,6 @@ from mocapzip.formats.amc import (
 )
 from mocapzip.formats.asf import read_asf
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import NUMBER, padded_buffer, parse_number_tokens, token_bounds
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 FOLDERS = ("cmu", "hdm05", "cmu-edited", "other-vicon-blade")
@@ -419,40 +417,6 @@ def test_hypothesis_six_digit_round_trip(motion):
     again = parse_amc(format_amc(motion, digits=6).encode())
     assert again.bones == motion.bones
     assert_same_to_digits(motion.values, again.values, 6)
-
-
-number_text = st.one_of(
-    st.floats(allow_nan=False, allow_infinity=False, min_value=-1e9, max_value=1e9).flatmap(
-        lambda v: st.sampled_from([repr(v), "%.6g" % v, "%.6f" % v, "%.17g" % v, "%e" % v, "%.3E" % v])
-    ),
-    st.from_regex(r"[+-]?(\d{1,20}\.?\d{0,20}|\.\d{1,20})([eE][+-]?\d{1,3})?", fullmatch=True),
-    st.text(alphabet="0123456789.-+eE_xn", min_size=1, max_size=12),
-)
-
-
-@settings(max_examples=80, deadline=None)
-@given(tokens=st.lists(number_text, min_size=1, max_size=40))
-def test_hypothesis_vectorised_numbers_match_float(tokens):
-    """The NumPy number parser gives float()'s exact result, or leaves the token to the caller."""
-    body = " \n".join(tokens).encode()
-    buf = padded_buffer(body)
-    starts, ends = token_bounds(buf)
-    assert len(starts) == len(tokens)
-    block = parse_number_tokens(buf, starts, ends)
-    for i, token in enumerate(tokens):
-        if block.ok[i]:
-            assert NUMBER.match(token.encode()), token
-            expected = float(token)
-            assert block.values[i] == expected and math.copysign(1, block.values[i]) == math.copysign(1, expected), token
-
-
-def test_vectorised_numbers_cover_cmu_and_blade_tokens():
-    tokens = [b"3.64024e-015", b"-0.000000", b"15.287990", b"0.0030495", b"7.12502", b"-180", b"1e+022"]
-    buf = padded_buffer(b" ".join(tokens))
-    block = parse_number_tokens(buf, *token_bounds(buf))
-    assert block.ok.all()
-    assert block.values.tolist() == [float(t) for t in tokens]
-    assert math.copysign(1, block.values[1]) == -1
 
 
 def test_parse_amc_accepts_str_and_reports_path():
