@@ -9,13 +9,31 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 
 import pytest
 
+from hostile_archives import Case, _stream, build
+from mocapzip.archive import decompress
 from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.mcz import ArchiveReader
 from mocapzip.parallel import imap, parallel_map
+
+GOLDEN = Path(__file__).parent / "golden"
+MCZ = Path(sys.executable).with_name("mcz")
+DEADLINE = 120.0  # seconds: only a hang reaches it
+
+
+def mcz(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([MCZ, *map(os.fspath, args)], capture_output=True, text=True, timeout=DEADLINE)
+
+
+def files_under(root: Path) -> dict[str, bytes]:
+    """Every file under `root` (temporary ones included) and its bytes; {} if `root` does not exist."""
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
 # --------------------------------------------------------------------------- the pool helper
@@ -75,3 +93,50 @@ def test_stopping_early_cancels_what_has_not_started(tmp_path):
     results.close()  # waits for the items the workers hold, cancels the others
     assert len(os.listdir(tmp_path)) <= 2 + window
     assert multiprocessing.active_children() == []
+
+
+# --------------------------------------------------------------------------- decompress and test
+
+
+@pytest.mark.parametrize("golden", ["lossy_v4.mcz", "lossless_v4.mcz", "lossy_v1.mcz"])
+def test_two_jobs_decompress_the_files_one_job_does(tmp_path, golden):
+    archive = GOLDEN / golden
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert decompress(archive, one, jobs=1) == {**decompress(archive, two, jobs=2), "output": os.fspath(one)}
+    assert files_under(one) == files_under(two) and len(files_under(one)) >= 3
+    assert mcz("test", archive, "-j", "2").returncode == 0
+
+
+def test_a_clip_that_fails_to_decode_stops_two_jobs_as_it_stops_one(tmp_path):
+    """The second of four files cannot be decoded (its checksum is right: only decoding finds it):
+    with -j 2 as with -j 1, the same one-line error, the file before it written whole, no other
+    file and no temporary file; `mcz test` reports it alike."""
+    damaged = tmp_path / "damaged.mcz"
+    build(Case("second_clip_3_bytes", "lossless", _stream("clip/00001", b"abc"), "clip/00001"), damaged)
+    outcomes = {}
+    for jobs in ("1", "2"):
+        out = tmp_path / f"out{jobs}"
+        result = mcz("decompress", damaged, "-o", out, "-j", jobs)
+        tested = mcz("test", damaged, "-j", jobs)
+        outcomes[jobs] = (result.returncode, result.stderr, files_under(out), tested.returncode, tested.stderr)
+    assert outcomes["1"] == outcomes["2"]
+    code, stderr, written, test_code, test_stderr = outcomes["2"]
+    assert code == test_code == 1
+    assert stderr == test_stderr and len(stderr.splitlines()) == 1
+    assert stderr.startswith(f"mcz: error: {damaged}: clip/00001 (64_01.amc): damaged")
+    decompress(GOLDEN / "lossless_v4.mcz", tmp_path / "whole", jobs=1)
+    assert written == {"09_01.amc": (tmp_path / "whole" / "09_01.amc").read_bytes()}  # the first file, whole
+
+
+def test_a_damaged_checksum_writes_nothing_with_two_jobs(tmp_path):
+    data = bytearray((GOLDEN / "lossy_v4.mcz").read_bytes())
+    with ArchiveReader(GOLDEN / "lossy_v4.mcz") as reader:
+        payload = reader.read("clip/00001")
+    start = data.find(payload)
+    data[start + len(payload) // 2] ^= 0x55
+    damaged = tmp_path / "d.mcz"
+    damaged.write_bytes(bytes(data))
+    result = mcz("decompress", damaged, "-o", tmp_path / "out", "-j", "2")
+    assert result.returncode == 1
+    assert result.stderr == f"mcz: error: {damaged}: stream 'clip/00001': CRC32 mismatch (clip 64_01.amc)\n"
+    assert not (tmp_path / "out").exists()
