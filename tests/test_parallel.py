@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import shutil
 import subprocess
 import sys
 import warnings
@@ -140,3 +141,51 @@ def test_a_damaged_checksum_writes_nothing_with_two_jobs(tmp_path):
     assert result.returncode == 1
     assert result.stderr == f"mcz: error: {damaged}: stream 'clip/00001': CRC32 mismatch (clip 64_01.amc)\n"
     assert not (tmp_path / "out").exists()
+
+
+# --------------------------------------------------------------------------- compress
+
+
+@pytest.fixture(scope="module")
+def awkward_database(tmp_path_factory, shared_data) -> Path:
+    """Real short clips with everything the first pass must handle in order: a skeleton that warns
+    (an unknown section), shared by several clips; a clip that cannot be read; a clip cut in the
+    middle of a frame (lossy: dropped frame, with a warning; lossless: skipped); a skeleton that
+    cannot be read, shared by two clips; a second subject."""
+    root = tmp_path_factory.mktemp("awkward")
+    cmu = shared_data / "cmu"
+    (root / "09").mkdir()
+    (root / "35").mkdir()
+    (root / "xx").mkdir()
+    asf = (cmu / "09" / "09.asf").read_text(encoding="latin-1")
+    (root / "09" / "09.asf").write_text(asf.replace("\n:name", "\n:namespace TEST\n:name", 1), encoding="latin-1")
+    for name in ("09_02", "09_03", "09_08"):
+        shutil.copyfile(cmu / "09" / f"{name}.amc", root / "09" / f"{name}.amc")
+    lines = (cmu / "09" / "09_02.amc").read_text(encoding="latin-1").split("\n")
+    lines[200] = "lowerback 1 2 x"
+    (root / "09" / "09_bad.amc").write_text("\n".join(lines), encoding="latin-1")
+    (root / "09" / "09_cut.amc").write_bytes((cmu / "09" / "09_03.amc").read_bytes()[:60_000])
+    for name in ("35.asf", "35_21.amc"):
+        shutil.copyfile(cmu / "35" / name, root / "35" / name)
+    (root / "xx" / "xx.asf").write_text(":bogus\n")
+    shutil.copyfile(cmu / "09" / "09_08.amc", root / "xx" / "a.amc")
+    shutil.copyfile(cmu / "09" / "09_02.amc", root / "xx" / "b.amc")
+    return root
+
+
+@pytest.mark.parametrize("mode", [["--lossless"], pytest.param(["-e", "2"], marks=pytest.mark.slow)],
+                         ids=["lossless", "lossy"])
+def test_two_jobs_compress_the_archive_one_job_does(awkward_database, tmp_path, mode):
+    """Same bytes, same skips, same warnings in the same order (each skeleton's once)."""
+    runs = {}
+    for jobs in ("1", "2"):
+        path = tmp_path / f"j{jobs}.mcz"
+        result = mcz("compress", awkward_database, "-o", path, "--skip-bad", "--json", "-j", jobs, *mode)
+        assert result.returncode == 0, result.stderr
+        runs[jobs] = (path.read_bytes(), result.stderr)
+    assert runs["1"] == runs["2"]
+    warned = runs["2"][1].splitlines()
+    assert sum(":namespace" in line for line in warned) == 1
+    assert [line.split(": ")[2] for line in warned if "skipped " in line and "ASF section" not in line] == (
+        ["skipped 09/09_bad.amc"] + (["skipped 09/09_cut.amc"] if mode == ["--lossless"] else [])
+        + ["skipped xx/a.amc", "skipped xx/b.amc"])
