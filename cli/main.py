@@ -134,7 +134,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=120.0, show_default=True,
               help="Frame rate stored in the archive (ASF/AMC do not carry one; CMU and HDM05 are 120).")
-@jobs_option("reading the clips and the error search")
+@jobs_option("reading the clips, the error search and the priors")
 @click.option("--cache-mb", type=click.IntRange(min=0), default=512, show_default=True,
               help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
                    "so memory stays bounded however large the database. -c auto and --segment keep every clip "

@@ -18,7 +18,9 @@ from pathlib import Path
 import pytest
 
 from hostile_archives import Case, _stream, build
-from mocapzip.archive import decompress
+from mocapzip.archive import Archive, decompress
+from mocapzip.archive.writer import _serialise_clips
+from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveReader
 from mocapzip.parallel import imap, parallel_map
@@ -189,3 +191,15 @@ def test_two_jobs_compress_the_archive_one_job_does(awkward_database, tmp_path, 
     assert [line.split(": ")[2] for line in warned if "skipped " in line and "ASF section" not in line] == (
         ["skipped 09/09_bad.amc"] + (["skipped 09/09_cut.amc"] if mode == ["--lossless"] else [])
         + ["skipped xx/a.amc", "skipped xx/b.amc"])
+
+
+@pytest.mark.parametrize("coder", ["primed", "auto"])
+def test_the_clips_coded_again_from_the_priors_in_workers_are_the_same(coder):
+    """The streams as class coding holds them (coder "context"), made from a real archive's clips."""
+    with Archive(GOLDEN / "lossy_v4.mcz") as archive, ArchiveReader(GOLDEN / "lossy_v4.mcz") as reader:
+        interim = {name: CodedClip.from_payload(reader.read(name), "primed", None, archive.priors).payload("context")
+                   for name in reader.names() if name.startswith("clip/")}
+    assert len(interim) == 2
+    one, two = _serialise_clips(interim, coder, jobs=1), _serialise_clips(interim, coder, jobs=2)
+    assert one == two
+    assert coder == "auto" or "priors" in one[1]

@@ -37,7 +37,7 @@ from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
-from mocapzip.parallel import imap
+from mocapzip.parallel import imap, parallel_map
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
 from mocapzip.representations.base import Encoded
@@ -95,7 +95,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         classes_meta = []
         if not settings.lossless:
             classes_meta, interim = _code_classes(scan, units, unit_class, class_names, reader, settings, writer, jobs)
-            coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder)
+            coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder, jobs)
             for name, stream in clip_streams.items():
                 writer.add(name, stream)
             settings = replace(settings, coefficient_coder=coder)
@@ -305,25 +305,41 @@ def _unit_classes(scan: _FirstPass, units: list[_Unit], reader: ClipReader, sett
     return auto_classes(clips, parse_auto(settings.classes), settings, jobs=jobs, report=report)
 
 
-def _serialise_clips(interim: dict[str, bytes], coder: str) -> tuple[str, dict[str, bytes]]:
+def _serialise_clips(interim: dict[str, bytes], coder: str, jobs: int = 1) -> tuple[str, dict[str, bytes]]:
     """The clip streams as stored, and the coder they use, from the streams as `encode_class`
     holds them (coded INTERIM_CODER). For "primed" the archive's priors are trained on every
     clip (in stream order), the clips coded again from them, and the priors stored as the
     "priors" stream. "auto" takes "primed" when that is smaller, counting the priors (about
-    400 bytes: they pay from roughly 10,000 frames on), else "context"."""
+    400 bytes: they pay from roughly 10,000 frames on), else "context".
+
+    Training carries its models from clip to clip, so it runs here, in order (decoding its
+    streams in workers measured slower: the matrices are larger than the streams and quick to
+    decode); `jobs` worker processes code the clips again."""
     if coder == "context":
         return coder, interim
     names = sorted(interim)
-
-    def decoded(name: str) -> CodedClip:  # one at a time: the coefficients of all clips may be large
-        return CodedClip.from_payload(interim[name], INTERIM_CODER)
-
-    priors = Priors.train(decoded(name).matrices for name in progress(names, desc="priors", unit="clip"))
-    primed = {name: decoded(name).payload("primed", priors) for name in names}
+    _SHARED["interim"] = interim  # the workers fork from here
+    try:
+        priors = Priors.train(_interim_matrices(name) for name in progress(names, desc="priors", unit="clip"))
+        _SHARED["priors"] = priors
+        primed = dict(zip(names, parallel_map(_primed_stream, names, jobs)))
+    finally:
+        _SHARED.clear()
     primed["priors"] = encode_bytes(priors.encode())
     if coder == "primed" or sum(map(len, primed.values())) < sum(map(len, interim.values())):
         return "primed", primed
     return "context", interim
+
+
+def _interim_matrices(name: str) -> list:
+    """A clip's coefficient matrices, decoded from its stream as `encode_class` coded it (one
+    clip at a time: the coefficients of all clips may be large)."""
+    return CodedClip.from_payload(_SHARED["interim"][name], INTERIM_CODER).matrices
+
+
+def _primed_stream(name: str) -> bytes:
+    """A clip's stream coded again, its models starting from the archive's priors ("primed")."""
+    return CodedClip.from_payload(_SHARED["interim"][name], INTERIM_CODER).payload("primed", _SHARED["priors"])
 
 
 def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], class_names: list[str],
