@@ -63,11 +63,11 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
         submit()
         while pending:
             caught, result, error = pending.popleft().result()
-            submit()
             for message, category, filename, lineno in caught:  # as one process raises them, at the item's turn
                 warnings.warn_explicit(message, category, filename, lineno)
             if error is not None:
                 raise error[0] from _RemoteTraceback(error[1])
+            submit()
             yield result
     finally:
         for future in pending:

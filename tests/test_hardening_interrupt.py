@@ -197,3 +197,29 @@ def test_ctrl_c_in_a_terminal_stops_every_worker_in_one_line(shared_data, tmp_pa
     assert proc.returncode == 1, (proc.returncode, stderr)
     assert stderr.splitlines() == ["mcz: error: interrupted (SIGINT); no partial file was left behind"], stderr
     assert os.listdir(out) == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="finds the workers through /proc (Linux)")
+def test_a_worker_killed_mid_run_ends_the_run_in_one_line(tmp_path):
+    """A worker of decompress -j 2 killed (as the OOM killer would) while it holds its first file: the
+    parent says so in one line, exits 1, and leaves no file behind."""
+    out, marker = tmp_path / "out", tmp_path / "marker"
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    proc = start([sys.executable, "-c", DECODING_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out, "-j", "2"], env)
+    wait_for(marker, proc)
+    workers = [int(entry) for entry in os.listdir("/proc") if entry.isdigit() and _parent_of(int(entry)) == proc.pid]
+    assert len(workers) == 2, workers
+    for pid in workers:
+        os.kill(pid, signal.SIGKILL)
+    _, stderr = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 1, (proc.returncode, stderr)
+    assert stderr.splitlines() == ["mcz: error: a worker process ended abruptly (killed, or out of memory); "
+                                   "no partial file was left behind"], stderr
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+def _parent_of(pid: int) -> int | None:
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+    except (OSError, IndexError, ValueError):
+        return None
