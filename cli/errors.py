@@ -7,6 +7,7 @@ import signal
 import sys
 import threading
 import warnings
+from concurrent.futures.process import BrokenProcessPool
 
 import click
 
@@ -46,6 +47,8 @@ def reports_errors(command):
             _fail(f"{exc.filename or exc}: already exists (use -f/--force to overwrite)")
         except OSError as exc:
             _fail(f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc))
+        except BrokenProcessPool:  # a worker killed (the OOM killer, kill -9): its parent ends cleanly
+            _fail("a worker process ended abruptly (killed, or out of memory); no partial file was left behind")
         except KeyboardInterrupt as exc:
             _fail(f"interrupted ({exc.args[0] if exc.args else 'SIGINT'}); no partial file was left behind")
         finally:

@@ -35,6 +35,12 @@ def main():
     """
 
 
+def jobs_option(work: str):
+    """-j/--jobs, as every command that spreads its work over worker processes takes it."""
+    return click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1,
+                        show_default="all cores", help=f"Worker processes for {work}.")
+
+
 @main.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path())
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
@@ -128,8 +134,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=120.0, show_default=True,
               help="Frame rate stored in the archive (ASF/AMC do not carry one; CMU and HDM05 are 120).")
-@click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1, show_default="all cores",
-              help="Worker processes for the error search.")
+@jobs_option("reading the clips, the error search and the priors")
 @click.option("--cache-mb", type=click.IntRange(min=0), default=512, show_default=True,
               help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
                    "so memory stays bounded however large the database. -c auto and --segment keep every clip "
@@ -197,9 +202,10 @@ def _parse_split(text):
               help="Folder for the ASF and AMC files (not stdout: `-o -` is refused).")
 @click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
 @click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
+@jobs_option("decoding the clips (the files are written in the archive's order)")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
-def decompress(archive_path, output, patterns, force, quiet):
+def decompress(archive_path, output, patterns, force, jobs, quiet):
     """Write the ASF and AMC files of ARCHIVE under OUTPUT at their original relative paths.
 
     \b
@@ -211,7 +217,7 @@ def decompress(archive_path, output, patterns, force, quiet):
     from mocapzip import progress
 
     progress.QUIET = quiet
-    summary = archive.decompress(archive_path, output, patterns, force=force)
+    summary = archive.decompress(archive_path, output, patterns, force=force, jobs=jobs)
     if not quiet:
         click.echo(f"{_count(summary['clips'], 'clip')}, {_count(summary['frames'], 'frame')} -> "
                    f"{_count(summary['files'], 'file')} in {summary['output']}", err=True)
@@ -282,16 +288,17 @@ def _clip_table(clips: list[dict], names: list[str]) -> None:
 
 @main.command("test")
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
+@jobs_option("decoding the clips")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
-def test_archive(archive_path, quiet):
+def test_archive(archive_path, jobs, quiet):
     """Verify ARCHIVE without writing anything: every checksum, every clip decoded (like zstd -t)."""
     from mocapzip import archive
     from mocapzip import progress
 
     progress.QUIET = quiet
     with archive.Archive(archive_path) as opened:
-        opened.verify()
+        opened.verify(jobs)
         count = len(opened.clips)
     if not quiet:
         click.echo(f"{archive_path}: OK ({_count(count, 'clip')})", err=True)

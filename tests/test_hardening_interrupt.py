@@ -27,7 +27,7 @@ TIMEOUT = 60
 # Runs the real `mcz` in the child, with one write slowed down: it writes half its data, creates the
 # marker file (so the test knows the temporary file is half written) and waits to be interrupted.
 SLOW_CHILD = r"""
-import os, sys, time
+import os, stat, sys, time
 from pathlib import Path
 from mocapzip.formats import mcz
 from mocapzip.cli.main import main
@@ -48,7 +48,10 @@ if sys.argv[1] == "compress":
 else:
     real_write, files = os.write, []
     def slow_write(fd, data):
-        inode = os.fstat(fd).st_ino  # descriptors are reused from file to file; inodes are not
+        status = os.fstat(fd)
+        if not stat.S_ISREG(status.st_mode):  # the pipes to and from worker processes (-j 2)
+            return real_write(fd, data)
+        inode = status.st_ino  # descriptors are reused from file to file; inodes are not
         if inode not in files:
             files.append(inode)
         if len(files) < 3:
@@ -60,18 +63,21 @@ main(prog_name="mcz")
 """
 
 
-# Runs the real `mcz compress`; the first clip coding, in whichever process runs it, creates the
-# marker file and waits for the test's release file (or for the signal, when it runs in the main process).
-CODING_CHILD = r"""
-import os, sys, time
+# Runs the real `mcz` with one function held: its first call, in whichever process makes it, creates
+# the marker file and waits for the test's release file (or for the signal, in the main process).
+# HELD_CHILD.format(module=..., name=...) holds `module.name` (a function or a method).
+HELD_CHILD = r"""
+import importlib, os, sys, time
 from pathlib import Path
-from mocapzip.ratecontrol import encode
 from mocapzip.cli.main import main
 
 marker = Path(os.environ["MCZ_TEST_MARKER"])
-real_code_clip = encode.code_clip
+owner = importlib.import_module("{module}")
+for part in "{name}".split(".")[:-1]:
+    owner = getattr(owner, part)
+real = getattr(owner, "{name}".split(".")[-1])
 
-def held_code_clip(*args, **kwargs):
+def held(*args, **kwargs):
     if not marker.exists():
         marker.touch()
         release = marker.with_suffix(".release")
@@ -79,11 +85,13 @@ def held_code_clip(*args, **kwargs):
             if release.exists():
                 break
             time.sleep(0.01)
-    return real_code_clip(*args, **kwargs)
+    return real(*args, **kwargs)
 
-encode.code_clip = held_code_clip
+setattr(owner, "{name}".split(".")[-1], held)
 main(prog_name="mcz")
 """
+CODING_CHILD = HELD_CHILD.format(module="mocapzip.ratecontrol.encode", name="code_clip")  # a clip's coding
+DECODING_CHILD = HELD_CHILD.format(module="mocapzip.archive.reader", name="Archive.file_bytes")  # a file's decoding
 
 
 def start(args: list, env: dict | None = None) -> subprocess.Popen:
@@ -149,12 +157,14 @@ def test_compress_interrupted_while_writing_the_archive(shared_data, tmp_path, s
 
 
 @SIGNALS
-def test_decompress_interrupted_while_writing_an_amc(tmp_path, signum):
-    """The third file is half written when the signal comes: it must vanish, the two before stay whole."""
+@pytest.mark.parametrize("jobs", ["1", "2"], ids=["j1", "j2"])
+def test_decompress_interrupted_while_writing_an_amc(tmp_path, signum, jobs):
+    """The third file is half written when the signal comes: it must vanish, the two before stay whole.
+    With -j 2 the workers decoding the files ahead are stopped too (the run ends, within TIMEOUT)."""
     reference, out, marker = tmp_path / "reference", tmp_path / "out", tmp_path / "marker"
     decompress(GOLDEN_LOSSLESS, reference)
     env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
-    proc = start([sys.executable, "-c", SLOW_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out], env)
+    proc = start([sys.executable, "-c", SLOW_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out, "-j", jobs], env)
     wait_for(marker, proc)
     assert any(name.startswith(".mcz-") and name.endswith(".tmp") for name in os.listdir(out))
     interrupt(proc, signum)
@@ -162,3 +172,54 @@ def test_decompress_interrupted_while_writing_an_amc(tmp_path, signum):
     assert len(left) == 2 and all(not name.startswith(".") for name in left), sorted(left)
     assert left == {name: (reference / name).read_bytes() for name in left}
     assert len(os.listdir(reference)) == 3
+
+
+@pytest.mark.parametrize("command", ["compress", "decompress"])
+def test_ctrl_c_in_a_terminal_stops_every_worker_in_one_line(shared_data, tmp_path, command):
+    """Ctrl-C in a terminal sends SIGINT to the whole process group, workers included (-j 2): the
+    parent alone answers, in one line (no worker traceback), and leaves nothing behind. The signal
+    comes while a worker holds its first clip (a state, not a clock)."""
+    out, marker = tmp_path / "out", tmp_path / "marker"
+    out.mkdir()
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    if command == "compress":
+        args = [CODING_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz"]
+    else:
+        args = [DECODING_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out]
+    proc = subprocess.Popen([sys.executable, "-c", *args, "-j", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env, start_new_session=True,  # a process group of its own, as in a terminal
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    wait_for(marker, proc)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    os.killpg(proc.pid, signal.SIGINT)
+    marker.with_suffix(".release").touch()  # the worker holding its clip may go on
+    _, stderr = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 1, (proc.returncode, stderr)
+    assert stderr.splitlines() == ["mcz: error: interrupted (SIGINT); no partial file was left behind"], stderr
+    assert os.listdir(out) == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="finds the workers through /proc (Linux)")
+def test_a_worker_killed_mid_run_ends_the_run_in_one_line(tmp_path):
+    """A worker of decompress -j 2 killed (as the OOM killer would) while it holds its first file: the
+    parent says so in one line, exits 1, and leaves no file behind."""
+    out, marker = tmp_path / "out", tmp_path / "marker"
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    proc = start([sys.executable, "-c", DECODING_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out, "-j", "2"], env)
+    wait_for(marker, proc)
+    workers = [int(entry) for entry in os.listdir("/proc") if entry.isdigit() and _parent_of(int(entry)) == proc.pid]
+    assert len(workers) == 2, workers
+    for pid in workers:
+        os.kill(pid, signal.SIGKILL)
+    _, stderr = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 1, (proc.returncode, stderr)
+    assert stderr.splitlines() == ["mcz: error: a worker process ended abruptly (killed, or out of memory); "
+                                   "no partial file was left behind"], stderr
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+def _parent_of(pid: int) -> int | None:
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+    except (OSError, IndexError, ValueError):
+        return None

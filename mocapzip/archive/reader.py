@@ -12,6 +12,7 @@ import fnmatch
 import os
 import secrets
 from collections import defaultdict
+from contextlib import closing
 from pathlib import Path, PurePosixPath
 
 import numpy as np
@@ -31,6 +32,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
 from mocapzip.formats.text import MAX_ABS_VALUE
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
+from mocapzip.parallel import imap
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import channels_from_weighted, skeleton_params
@@ -215,16 +217,33 @@ class Archive:
                     raise
                 raise ArchiveError(f"{exc.message} (clip {clip})", self.path) from exc
 
-    def verify(self) -> None:
+    def verify(self, jobs: int = 1) -> None:
         """Check every stream's checksum and make every file a full `decompress` writes, in memory
         (`mcz test`): an archive that passes decompresses, disk space and permissions aside."""
         self.verify_checksums()
-        for kind, index in progress(list(self.files.values()), desc="test", unit="file"):
-            self.file_bytes(kind, index)
+        entries = list(self.files.values())
+        with closing(self.made_files(entries, jobs, keep=False)) as made:
+            for _ in progress(made, total=len(entries), desc="test", unit="file"):
+                pass
+
+    def made_files(self, entries: list[tuple[str, int]], jobs: int = 1, keep: bool = True):
+        """`file_bytes` of each (kind, index) of `entries`, in order, made by `jobs` worker
+        processes (`parallel.imap`; None each if not `keep`: only checked). A few files ahead of
+        the one yielded are made at once (FILES_AHEAD per job), never all of them; the first
+        that fails raises at its turn. Close the generator if you may stop early."""
+        # The workers fork from here and read this archive's open file: opening it again in each
+        # measured no faster, and HDF5 would reuse the inherited file anyway (it reads with pread;
+        # every stream read is checked against its CRC32).
+        _SHARED["archive"] = self
+        try:
+            yield from imap(_made_file if keep else _checked_file, entries, jobs, FILES_AHEAD * jobs)
+        finally:
+            _SHARED.clear()
 
 
-def decompress(archive_path, out_dir, patterns=(), force: bool = False) -> dict:
-    """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`.
+def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: int = 1) -> dict:
+    """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`,
+    made by `jobs` worker processes and written here one at a time, in the archive's order.
 
     Every path comes from the archive's meta, checked on opening to be relative, free of '.'
     and '..' and unique (`meta.validate`); each file is also refused if its folder resolves
@@ -249,10 +268,27 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False) -> dict:
         if existing and not force:
             raise FileExistsError(None, "already exists", os.fspath(existing[0]))
         frames = 0
-        for path, (kind, index) in progress(list(targets.items()), desc="decompress", unit="file"):
-            _write_atomically(path, archive.file_bytes(kind, index))
-            frames += archive.clips[index]["frames"] if kind == "amc" else 0
+        entries = list(targets.items())
+        with progress(total=len(entries), desc="decompress", unit="file") as bar, \
+                closing(archive.made_files([entry for _, entry in entries], jobs)) as made:
+            for (path, (kind, index)), data in zip(entries, made):
+                _write_atomically(path, data)
+                frames += archive.clips[index]["frames"] if kind == "amc" else 0
+                bar.update()
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
+
+
+FILES_AHEAD = 4  # files made ahead of the one being written, per worker: enough to keep every worker busy
+
+_SHARED: dict = {}  # the archive the forked workers decode from (`Archive.made_files`)
+
+
+def _made_file(entry: tuple[str, int]) -> bytes:
+    return _SHARED["archive"].file_bytes(*entry)
+
+
+def _checked_file(entry: tuple[str, int]) -> None:
+    _SHARED["archive"].file_bytes(*entry)
 
 
 def _write_atomically(path: Path, data: bytes) -> None:

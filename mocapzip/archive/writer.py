@@ -14,7 +14,9 @@ from __future__ import annotations
 import json
 import os
 import time
+import warnings
 from collections import defaultdict
+from contextlib import closing
 from dataclasses import asdict, dataclass, field, replace
 
 from mocapzip import __version__
@@ -35,6 +37,7 @@ from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
+from mocapzip.parallel import imap, parallel_map
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
 from mocapzip.representations.base import Encoded
@@ -74,7 +77,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
                         None if keeps_all else cache_bytes, settings.axes_from_positions)
     with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
-        scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all)
+        scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all, jobs=jobs)
         if not scan.sources:
             raise MocapFormatError(f"nothing to compress: all {len(skipped)} inputs were skipped",
                                    ", ".join(map(os.fspath, inputs)))
@@ -92,7 +95,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         classes_meta = []
         if not settings.lossless:
             classes_meta, interim = _code_classes(scan, units, unit_class, class_names, reader, settings, writer, jobs)
-            coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder)
+            coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder, jobs)
             for name, stream in clip_streams.items():
                 writer.add(name, stream)
             settings = replace(settings, coefficient_coder=coder)
@@ -165,9 +168,13 @@ class _FirstPass:
 
 
 def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Settings, writer: ArchiveWriter,
-                skipped: list | None, accumulate: bool) -> _FirstPass:
+                skipped: list | None, accumulate: bool, jobs: int = 1) -> _FirstPass:
     """Read every clip once: check it, note its row and class, and code it (lossless) or, with
     `accumulate`, add its poses to its class's covariance; then offer it to `reader` to keep.
+
+    `jobs` worker processes read the clips (and code them, lossless), a few ahead of the one
+    taken in (CLIPS_AHEAD per job); everything else happens here, clip by clip in order, so
+    the archive, the skips and the messages are those of one process.
 
     A clip that cannot be read raises MocapFormatError or OSError; with a `skipped` list it
     is left out and recorded there instead (`inputs.record_skip`).
@@ -177,29 +184,65 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
     else:  # lossless clips share no basis: there is nothing to group
         name_class = (lambda source: "all") if settings.lossless else None
     scan = _FirstPass()
-    for source in progress(sources, desc="read", unit="clip"):
-        try:
-            clip = reader.read(source)
-            if not settings.lossless:
-                _check_codable(clip)
-        except (MocapFormatError, OSError) as exc:
-            if skipped is None:
-                raise
-            record_skip(skipped, source, exc)
-            continue
-        scan.rows.append(_clip_row(clip))
-        if name_class is not None:
-            scan.classes.append(name_class(source))
-        if settings.lossless:
-            writer.add(f"clip/{len(scan.sources):05d}", encode_channels(clip.motion.values))
-            scan.rows[-1].update(error_cm=0.0, max_error_cm=0.0)
-        else:
-            if accumulate:
-                dim = clip.poses.shape[1]
-                scan.poses.setdefault(scan.classes[-1], CovarianceAccumulator(dim)).add(clip.poses)
-            reader.keep(clip)
-        scan.sources.append(source)
+    _SHARED["reader"] = reader  # the workers fork from here
+    try:
+        with closing(imap(_read_clip, sources, jobs, CLIPS_AHEAD * jobs)) as read:
+            for source in progress(sources, desc="read", unit="clip"):
+                try:  # the skeleton here, in order: its warnings and errors come as one process gives them
+                    model, failure = reader.skeleton(source.asf)[1], None
+                except (MocapFormatError, OSError) as exc:
+                    model, failure = None, exc
+                outcome = next(read)  # the clip or what stopped its reading (any other error stops the run)
+                try:
+                    failure = failure or (outcome if isinstance(outcome, Exception) else None)
+                    if failure is not None:
+                        raise failure
+                    clip, stream = outcome
+                    clip.model = model
+                    if not settings.lossless:
+                        _check_codable(clip)
+                except (MocapFormatError, OSError) as exc:
+                    if skipped is None:
+                        raise
+                    record_skip(skipped, source, exc)
+                    continue
+                scan.rows.append(_clip_row(clip))
+                if name_class is not None:
+                    scan.classes.append(name_class(source))
+                if settings.lossless:
+                    writer.add(f"clip/{len(scan.sources):05d}", stream)
+                    scan.rows[-1].update(error_cm=0.0, max_error_cm=0.0)
+                else:
+                    if accumulate:
+                        dim = clip.poses.shape[1]
+                        scan.poses.setdefault(scan.classes[-1], CovarianceAccumulator(dim)).add(clip.poses)
+                    reader.keep(clip)
+                scan.sources.append(source)
+    finally:
+        _SHARED.clear()
     return scan
+
+
+CLIPS_AHEAD = 2  # clips read ahead of the one taken in, per worker: each may be tens of MB
+
+_SHARED: dict = {}  # what the forked workers of the first pass read (`_read_clip`)
+
+
+def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None] | MocapFormatError | OSError:
+    """The first pass's work on one clip, in a worker (or here, with one job): the clip read,
+    without its skeleton model (the caller has it: sent back, it would be a copy per clip), and
+    its lossless stream (None if lossy); or the error that stopped its reading, to be raised
+    (or the clip skipped) at its turn. The skeleton's warnings are the caller's to give."""
+    reader = _SHARED["reader"]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            reader.skeleton(source.asf)
+        clip = reader.read(source)
+    except (MocapFormatError, OSError) as exc:
+        return exc
+    clip.model = None
+    return clip, encode_channels(clip.motion.values) if clip.encoded is None else None
 
 
 def _check_codable(clip: LoadedClip) -> None:
@@ -262,25 +305,41 @@ def _unit_classes(scan: _FirstPass, units: list[_Unit], reader: ClipReader, sett
     return auto_classes(clips, parse_auto(settings.classes), settings, jobs=jobs, report=report)
 
 
-def _serialise_clips(interim: dict[str, bytes], coder: str) -> tuple[str, dict[str, bytes]]:
+def _serialise_clips(interim: dict[str, bytes], coder: str, jobs: int = 1) -> tuple[str, dict[str, bytes]]:
     """The clip streams as stored, and the coder they use, from the streams as `encode_class`
     holds them (coded INTERIM_CODER). For "primed" the archive's priors are trained on every
     clip (in stream order), the clips coded again from them, and the priors stored as the
     "priors" stream. "auto" takes "primed" when that is smaller, counting the priors (about
-    400 bytes: they pay from roughly 10,000 frames on), else "context"."""
+    400 bytes: they pay from roughly 10,000 frames on), else "context".
+
+    Training carries its models from clip to clip, so it runs here, in order (decoding its
+    streams in workers measured slower: the matrices are larger than the streams and quick to
+    decode); `jobs` worker processes code the clips again."""
     if coder == "context":
         return coder, interim
     names = sorted(interim)
-
-    def decoded(name: str) -> CodedClip:  # one at a time: the coefficients of all clips may be large
-        return CodedClip.from_payload(interim[name], INTERIM_CODER)
-
-    priors = Priors.train(decoded(name).matrices for name in progress(names, desc="priors", unit="clip"))
-    primed = {name: decoded(name).payload("primed", priors) for name in names}
+    _SHARED["interim"] = interim  # the workers fork from here
+    try:
+        priors = Priors.train(_interim_matrices(name) for name in progress(names, desc="priors", unit="clip"))
+        _SHARED["priors"] = priors
+        primed = dict(zip(names, parallel_map(_primed_stream, names, jobs)))
+    finally:
+        _SHARED.clear()
     primed["priors"] = encode_bytes(priors.encode())
     if coder == "primed" or sum(map(len, primed.values())) < sum(map(len, interim.values())):
         return "primed", primed
     return "context", interim
+
+
+def _interim_matrices(name: str) -> list:
+    """A clip's coefficient matrices, decoded from its stream as `encode_class` coded it (one
+    clip at a time: the coefficients of all clips may be large)."""
+    return CodedClip.from_payload(_SHARED["interim"][name], INTERIM_CODER).matrices
+
+
+def _primed_stream(name: str) -> bytes:
+    """A clip's stream coded again, its models starting from the archive's priors ("primed")."""
+    return CodedClip.from_payload(_SHARED["interim"][name], INTERIM_CODER).payload("primed", _SHARED["priors"])
 
 
 def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], class_names: list[str],

@@ -44,6 +44,7 @@ from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.classes.ppca import DEFAULT_VARIANCE_SHARE, PpcaModel
+from mocapzip.parallel import parallel_map
 
 PCA_SHARES = (0.3, 0.5, 0.7)  # as ratecontrol.encode.PCA_SHARES
 SEARCH_STRIDE = 4  # calibration scores every 4th frame at most (MAX_CALIBRATION_FRAMES caps the count)
@@ -297,7 +298,7 @@ class ByteProxy:
         stats = stats or [ClipStats.of(p) for p in poses]
         _SHARED.update(clips=clips, pca=_pca(stats), settings=settings)
         try:
-            rows = _parallel(_calibrate_clip, range(len(clips)), jobs)
+            rows = parallel_map(_calibrate_clip, range(len(clips)), jobs)
         finally:
             _SHARED.clear()
         return cls(poses, settings, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
@@ -363,12 +364,6 @@ class ByteProxy:
 
 
 _SHARED: dict = {}  # what forked calibration workers read
-
-
-def _parallel(function, items, jobs: int) -> list:
-    from mocapzip.ratecontrol.encode import _parallel as parallel
-
-    return parallel(function, items, jobs)
 
 
 def _basis_bytes(pca: PcaBasis, q: int, settings) -> int:

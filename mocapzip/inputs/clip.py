@@ -157,10 +157,7 @@ class ClipReader:
 
         Without a representation (lossless) a truncated last frame is refused: it could not
         come back byte for byte. Lossy reading drops it (`Motion.dropped_frames`)."""
-        if source.asf not in self._skeletons:
-            skeleton = read_asf(source.asf)
-            self._skeletons[source.asf] = (skeleton, SkeletonModel.from_asf(skeleton))
-        skeleton, model = self._skeletons[source.asf]
+        skeleton, model = self.skeleton(source.asf)
         lossless = self.representation_name is None
         motion = read_amc(source.amc, skeleton, partial_last_frame="error" if lossless else "drop")
         encoded = None
@@ -171,6 +168,14 @@ class ClipReader:
         if encoded is not None:  # the joints the error is measured against, by the check's own kinematics
             clip.positions = clip.decode_tail.positions(motion.values)
         return clip
+
+    def skeleton(self, path) -> tuple:
+        """(skeleton, model) of the ASF at `path`, read once; raises MocapFormatError or OSError
+        if it cannot be read."""
+        if path not in self._skeletons:
+            skeleton = read_asf(path)
+            self._skeletons[path] = (skeleton, SkeletonModel.from_asf(skeleton))
+        return self._skeletons[path]
 
     def load(self, source: ClipSource) -> LoadedClip:
         """The kept clip, or the clip read again."""

@@ -19,11 +19,6 @@ coded finer.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
-import threading
-import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -34,6 +29,7 @@ from mocapzip.codec.clip_stream import CodedClip, reconstruct, scale_root
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
+from mocapzip.parallel import parallel_map
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
 from mocapzip.representations.weighted import joint_position_columns
@@ -98,14 +94,14 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
                                     ClassBasis.steps_for(pca.variances[:q], target, precision))
 
     try:
-        needed = np.array(_parallel(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
+        needed = np.array(parallel_map(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
         # Shares that need the same component count get the same basis: estimate it once.
         counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
         candidates = [basis_of(q, settings.basis_precision) for q in counts]
         _SHARED["scales"] = [None] * len(clips)
         if len(candidates) > 1:
             _SHARED["bases"] = candidates
-            estimates = _parallel(_estimated_sizes, range(len(clips)), jobs)  # per clip: (bytes per basis, factor)
+            estimates = parallel_map(_estimated_sizes, range(len(clips)), jobs)  # per clip: (bytes per basis, factor)
             totals = [len(b.encode()) + sum(sizes[i] for sizes, _ in estimates) for i, b in enumerate(candidates)]
             # the estimates rank candidates within about a per cent: those that close are coded for real
             candidates = [b for b, total in zip(candidates, totals) if total <= (1 + CANDIDATE_MARGIN) * min(totals)]
@@ -129,7 +125,7 @@ def _coded_with(basis: ClassBasis, basis_of, clips, target: float, settings, job
     precision = settings.basis_precision
     for _ in range(BASIS_REFINEMENTS):
         _SHARED["basis"] = basis
-        codings = _parallel(_code_clip, range(len(clips)), jobs)
+        codings = parallel_map(_code_clip, range(len(clips)), jobs)
         worst, index = max((error[0], i) for i, (_, error, _) in enumerate(codings))
         if worst <= target:
             return basis, codings
@@ -138,42 +134,6 @@ def _coded_with(basis: ClassBasis, basis_of, clips, target: float, settings, job
     raise TargetError(f"no coding met {target:g} cm (this clip reached {worst:.4f} cm): the target is "
                       "finer than the precision of the clip's numbers allows; use a larger -e, or --lossless",
                       clips[index].source.amc)
-
-
-_RUN_HERE: set = set()  # functions this process has run: their compiled kernels are loaded
-
-
-def _parallel(function, items, jobs: int) -> list:
-    """map over items, in `jobs` forked processes when that can help.
-
-    The first time a function is mapped, its first item runs here, before the fork: numba
-    then loads the compiled kernels it uses once, and every worker forked later has them
-    (each would otherwise load them again from the cache, about a second per pool).
-    """
-    items = list(items)
-    if jobs <= 1 or len(items) < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        return [function(i) for i in items]
-    done = []
-    if function not in _RUN_HERE:
-        _RUN_HERE.add(function)
-        done, items = [function(items[0])], items[1:]
-    if len(items) < 2:
-        return done + [function(i) for i in items]
-    with ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork"),
-                             initializer=_exit_with_parent, initargs=(os.getpid(),)) as pool:
-        return done + list(pool.map(function, items))
-
-
-def _exit_with_parent(parent: int) -> None:
-    """Worker start-up: a watcher thread ends the worker once its parent is gone. A parent
-    killed by SIGKILL runs no clean-up, and its workers would otherwise wait for work forever."""
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(0.5)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 def _components_for_shares(index: int) -> list[int]:

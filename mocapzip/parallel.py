@@ -1,0 +1,126 @@
+"""Worker processes: the one place where mcz spreads work over the cores `-j` gives.
+
+Workers are forked, so they inherit what the parent holds when the pool starts (clips kept
+in memory, an opened archive, what a module put in its `_SHARED` for them) instead of
+receiving it pickled: only each item and its result cross between processes. Where fork is
+not available, or one job is asked for, the work runs in the calling process, one item after
+the other, exactly as the workers would do it.
+
+What a run in workers keeps from a run in one process: results in item order, the first
+failing item's exception (at its turn, not before the results ahead of it), and the warnings
+each item raised, given in the parent at the item's turn. What it adds: workers never
+outlive the parent, and a Ctrl-C or a `kill` of the parent's process group is the parent's
+to handle (one message, its clean-up), not every worker's.
+"""
+
+from __future__ import annotations
+
+import itertools
+import multiprocessing
+import os
+import signal
+import threading
+import time
+import traceback
+import warnings
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+
+
+_RUN_HERE: set = set()  # functions this process has run before forking workers for them (`imap`)
+
+
+def parallel_map(function: Callable, items, jobs: int) -> list:
+    """`[function(item) for item in items]`, in `jobs` forked processes when that can help."""
+    return list(imap(function, list(items), jobs))
+
+
+def imap(function: Callable, items: Sequence, jobs: int, window: int | None = None) -> Iterator:
+    """`function(item)` for each of `items`, yielded in order, computed in `jobs` forked worker
+    processes when that can help (else here, one at a time, as each is asked for).
+
+    At most `window` items (default: all) are in flight, handed to workers but not yet
+    yielded, so large results (decoded files) are never all held at once. An item whose
+    function raised raises here, at its turn. When the iteration stops early (that error, an
+    error of the consumer, Ctrl-C), the items not started are cancelled and the workers finish
+    the few they hold (at most `jobs` + 1) before the exception goes on: no work is left
+    running behind. A consumer that may stop early must close the generator
+    (`contextlib.closing`), so that this happens at once rather than when it is collected.
+    """
+    if jobs > 1 and len(items) > 1 and function not in _RUN_HERE:
+        # The first time a function goes to workers, its first item runs here, before the fork:
+        # numba then loads the compiled kernels it uses once, and every worker forked later has
+        # them (each would otherwise load them again from the cache: about a second per pool).
+        _RUN_HERE.add(function)
+        yield function(items[0])
+        items = items[1:]
+    if jobs <= 1 or len(items) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        for item in items:
+            yield function(item)
+        return
+    window = len(items) if window is None else max(1, window)
+    pool = ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork"),
+                               initializer=_worker_start, initargs=(os.getpid(),))
+    pending: deque = deque()
+    try:
+        queue = iter(items)
+
+        def submit() -> None:
+            for item in itertools.islice(queue, window - len(pending)):
+                pending.append(pool.submit(_call, function, item))
+
+        submit()
+        while pending:
+            caught, result, error = pending.popleft().result()
+            for message, category, filename, lineno in caught:  # as one process raises them, at the item's turn
+                warnings.warn_explicit(message, category, filename, lineno)
+            if error is not None:
+                raise error[0] from _RemoteTraceback(error[1])
+            submit()
+            yield result
+    finally:
+        for future in pending:
+            future.cancel()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _call(function: Callable, item) -> tuple[list, object, tuple[BaseException, str] | None]:
+    """In a worker: (warnings raised, result, None) or (warnings raised, None, (exception, its traceback)).
+    The warnings travel back even when the item fails, as they would have been shown before the error."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            result, error = function(item), None
+        except Exception as exc:
+            result, error = None, (exc, traceback.format_exc())
+    return [(w.message, w.category, w.filename, w.lineno) for w in caught], result, error
+
+
+class _RemoteTraceback(Exception):
+    """Where a worker's exception came from (its traceback, as text): the cause of the exception re-raised."""
+
+    def __str__(self) -> str:
+        return f"\n\"\"\"\n{self.args[0]}\"\"\""
+
+
+def _worker_start(parent: int) -> None:
+    """Worker start-up. Ctrl-C in a terminal reaches the whole process group: the workers ignore
+    it and the parent, which handles it, stops them (`imap`); a SIGTERM ends a worker at once
+    (its inherited handler would raise KeyboardInterrupt and print a traceback). Then the watch
+    for a parent gone without clean-up (`_exit_with_parent`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _exit_with_parent(parent)
+
+
+def _exit_with_parent(parent: int) -> None:
+    """A watcher thread ends the worker once its parent is gone. A parent killed by SIGKILL
+    runs no clean-up, and its workers would otherwise wait for work forever."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()

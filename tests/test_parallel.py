@@ -1,0 +1,205 @@
+"""Work on the cores `-j` gives (issue 15, deliverable 3): the first pass, the priors, decompress
+and `mcz test` in worker processes give what one process gives (the same archive, files,
+errors and warnings), hold only a few results at once, and stop cleanly on an error.
+
+Behaviour only: nothing here depends on how fast anything runs.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import shutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+from hostile_archives import Case, _stream, build
+from mocapzip.archive import Archive, decompress
+from mocapzip.archive.writer import _serialise_clips
+from mocapzip.codec.clip_stream import CodedClip
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.mcz import ArchiveReader
+from mocapzip.parallel import imap, parallel_map
+
+GOLDEN = Path(__file__).parent / "golden"
+MCZ = Path(sys.executable).with_name("mcz")
+DEADLINE = 120.0  # seconds: only a hang reaches it
+
+
+def mcz(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([MCZ, *map(os.fspath, args)], capture_output=True, text=True, timeout=DEADLINE)
+
+
+def files_under(root: Path) -> dict[str, bytes]:
+    """Every file under `root` (temporary ones included) and its bytes; {} if `root` does not exist."""
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+# --------------------------------------------------------------------------- the pool helper
+
+
+def _square_with_a_warning(i: int) -> int:
+    warnings.warn(f"item {i}")
+    return i * i
+
+
+def _fails_at_three(i: int) -> int:
+    if i == 3:
+        raise MocapFormatError(f"item {i} is bad", "some/file.amc", 7)
+    return i
+
+
+def _note_start(item: tuple[str, int]) -> int:
+    folder, i = item
+    Path(folder, str(i)).touch()
+    return i
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_results_and_warnings_come_in_item_order(jobs):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        results = list(imap(_square_with_a_warning, range(12), jobs, window=3))
+    assert results == [i * i for i in range(12)]
+    assert [str(w.message) for w in caught] == [f"item {i}" for i in range(12)]
+    assert parallel_map(abs, [-2, 1, -3], jobs) == [2, 1, 3]
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_failing_item_raises_at_its_turn_with_its_message(jobs):
+    got = []
+    with pytest.raises(MocapFormatError) as failure:
+        for result in imap(_fails_at_three, range(10), jobs, window=4):
+            got.append(result)
+    assert got == [0, 1, 2]  # the results before it, none after
+    assert str(failure.value) == "some/file.amc:7: item 3 is bad"
+    assert multiprocessing.active_children() == []  # no worker left behind
+
+
+def test_at_most_a_window_of_items_is_in_flight(tmp_path):
+    """However fast the workers are, no more than `window` items beyond those consumed are handed out."""
+    window, items = 3, [(os.fspath(tmp_path), i) for i in range(20)]
+    for consumed, result in enumerate(imap(_note_start, items, 2, window=window), start=1):
+        assert result == consumed - 1
+        assert len(os.listdir(tmp_path)) <= consumed + window
+    assert len(os.listdir(tmp_path)) == len(items)
+
+
+def test_stopping_early_cancels_what_has_not_started(tmp_path):
+    window, items = 2, [(os.fspath(tmp_path), i) for i in range(50)]
+    results = imap(_note_start, items, 2, window=window)
+    assert [next(results), next(results)] == [0, 1]
+    results.close()  # waits for the items the workers hold, cancels the others
+    assert len(os.listdir(tmp_path)) <= 2 + window
+    assert multiprocessing.active_children() == []
+
+
+# --------------------------------------------------------------------------- decompress and test
+
+
+@pytest.mark.parametrize("golden", ["lossy_v4.mcz", "lossless_v4.mcz", "lossy_v1.mcz"])
+def test_two_jobs_decompress_the_files_one_job_does(tmp_path, golden):
+    archive = GOLDEN / golden
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert decompress(archive, one, jobs=1) == {**decompress(archive, two, jobs=2), "output": os.fspath(one)}
+    assert files_under(one) == files_under(two) and len(files_under(one)) >= 3
+    assert mcz("test", archive, "-j", "2").returncode == 0
+
+
+def test_a_clip_that_fails_to_decode_stops_two_jobs_as_it_stops_one(tmp_path):
+    """The second of four files cannot be decoded (its checksum is right: only decoding finds it):
+    with -j 2 as with -j 1, the same one-line error, the file before it written whole, no other
+    file and no temporary file; `mcz test` reports it alike."""
+    damaged = tmp_path / "damaged.mcz"
+    build(Case("second_clip_3_bytes", "lossless", _stream("clip/00001", b"abc"), "clip/00001"), damaged)
+    outcomes = {}
+    for jobs in ("1", "2"):
+        out = tmp_path / f"out{jobs}"
+        result = mcz("decompress", damaged, "-o", out, "-j", jobs)
+        tested = mcz("test", damaged, "-j", jobs)
+        outcomes[jobs] = (result.returncode, result.stderr, files_under(out), tested.returncode, tested.stderr)
+    assert outcomes["1"] == outcomes["2"]
+    code, stderr, written, test_code, test_stderr = outcomes["2"]
+    assert code == test_code == 1
+    assert stderr == test_stderr and len(stderr.splitlines()) == 1
+    assert stderr.startswith(f"mcz: error: {damaged}: clip/00001 (64_01.amc): damaged")
+    decompress(GOLDEN / "lossless_v4.mcz", tmp_path / "whole", jobs=1)
+    assert written == {"09_01.amc": (tmp_path / "whole" / "09_01.amc").read_bytes()}  # the first file, whole
+
+
+def test_a_damaged_checksum_writes_nothing_with_two_jobs(tmp_path):
+    data = bytearray((GOLDEN / "lossy_v4.mcz").read_bytes())
+    with ArchiveReader(GOLDEN / "lossy_v4.mcz") as reader:
+        payload = reader.read("clip/00001")
+    start = data.find(payload)
+    data[start + len(payload) // 2] ^= 0x55
+    damaged = tmp_path / "d.mcz"
+    damaged.write_bytes(bytes(data))
+    result = mcz("decompress", damaged, "-o", tmp_path / "out", "-j", "2")
+    assert result.returncode == 1
+    assert result.stderr == f"mcz: error: {damaged}: stream 'clip/00001': CRC32 mismatch (clip 64_01.amc)\n"
+    assert not (tmp_path / "out").exists()
+
+
+# --------------------------------------------------------------------------- compress
+
+
+@pytest.fixture(scope="module")
+def awkward_database(tmp_path_factory, shared_data) -> Path:
+    """Real short clips with everything the first pass must handle in order: a skeleton that warns
+    (an unknown section), shared by several clips; a clip that cannot be read; a clip cut in the
+    middle of a frame (lossy: dropped frame, with a warning; lossless: skipped); a skeleton that
+    cannot be read, shared by two clips; a second subject."""
+    root = tmp_path_factory.mktemp("awkward")
+    cmu = shared_data / "cmu"
+    (root / "09").mkdir()
+    (root / "35").mkdir()
+    (root / "xx").mkdir()
+    asf = (cmu / "09" / "09.asf").read_text(encoding="latin-1")
+    (root / "09" / "09.asf").write_text(asf.replace("\n:name", "\n:namespace TEST\n:name", 1), encoding="latin-1")
+    for name in ("09_02", "09_03", "09_08"):
+        shutil.copyfile(cmu / "09" / f"{name}.amc", root / "09" / f"{name}.amc")
+    lines = (cmu / "09" / "09_02.amc").read_text(encoding="latin-1").split("\n")
+    lines[200] = "lowerback 1 2 x"
+    (root / "09" / "09_bad.amc").write_text("\n".join(lines), encoding="latin-1")
+    (root / "09" / "09_cut.amc").write_bytes((cmu / "09" / "09_03.amc").read_bytes()[:60_000])
+    for name in ("35.asf", "35_21.amc"):
+        shutil.copyfile(cmu / "35" / name, root / "35" / name)
+    (root / "xx" / "xx.asf").write_text(":bogus\n")
+    shutil.copyfile(cmu / "09" / "09_08.amc", root / "xx" / "a.amc")
+    shutil.copyfile(cmu / "09" / "09_02.amc", root / "xx" / "b.amc")
+    return root
+
+
+@pytest.mark.parametrize("mode", [["--lossless"], pytest.param(["-e", "2"], marks=pytest.mark.slow)],
+                         ids=["lossless", "lossy"])
+def test_two_jobs_compress_the_archive_one_job_does(awkward_database, tmp_path, mode):
+    """Same bytes, same skips, same warnings in the same order (each skeleton's once)."""
+    runs = {}
+    for jobs in ("1", "2"):
+        path = tmp_path / f"j{jobs}.mcz"
+        result = mcz("compress", awkward_database, "-o", path, "--skip-bad", "--json", "-j", jobs, *mode)
+        assert result.returncode == 0, result.stderr
+        runs[jobs] = (path.read_bytes(), result.stderr)
+    assert runs["1"] == runs["2"]
+    warned = runs["2"][1].splitlines()
+    assert sum(":namespace" in line for line in warned) == 1
+    assert [line.split(": ")[2] for line in warned if "skipped " in line and "ASF section" not in line] == (
+        ["skipped 09/09_bad.amc"] + (["skipped 09/09_cut.amc"] if mode == ["--lossless"] else [])
+        + ["skipped xx/a.amc", "skipped xx/b.amc"])
+
+
+@pytest.mark.parametrize("coder", ["primed", "auto"])
+def test_the_clips_coded_again_from_the_priors_in_workers_are_the_same(coder):
+    """The streams as class coding holds them (coder "context"), made from a real archive's clips."""
+    with Archive(GOLDEN / "lossy_v4.mcz") as archive, ArchiveReader(GOLDEN / "lossy_v4.mcz") as reader:
+        interim = {name: CodedClip.from_payload(reader.read(name), "primed", None, archive.priors).payload("context")
+                   for name in reader.names() if name.startswith("clip/")}
+    assert len(interim) == 2
+    one, two = _serialise_clips(interim, coder, jobs=1), _serialise_clips(interim, coder, jobs=2)
+    assert one == two
+    assert coder == "auto" or "priors" in one[1]
