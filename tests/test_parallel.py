@@ -110,6 +110,34 @@ def test_progress_bars_start_no_thread_that_workers_would_fork_with():
             assert set(threading.enumerate()) <= before
 
 
+# Runs the real `mcz` with its second fork refused, as under a process limit (EAGAIN).
+SECOND_FORK_REFUSED = r"""
+import errno, os
+from mocapzip.cli.main import main
+
+real_fork, forks = os.fork, []
+
+def fork():
+    forks.append(None)
+    if len(forks) == 2:
+        raise OSError(errno.EAGAIN, os.strerror(errno.EAGAIN))
+    return real_fork()
+
+os.fork = fork
+main(prog_name="mcz")
+"""
+
+
+def test_a_pool_that_cannot_start_all_its_workers_ends_the_run(tmp_path):
+    """One worker started, the second refused: one line, exit 1, and no wait for the first at exit."""
+    out = tmp_path / "out"
+    result = subprocess.run([sys.executable, "-c", SECOND_FORK_REFUSED, "decompress", GOLDEN / "lossy_v4.mcz",
+                             "-o", out, "-j", "2"], capture_output=True, text=True, timeout=DEADLINE)
+    assert result.returncode == 1
+    assert result.stderr == "mcz: error: [Errno 11] Resource temporarily unavailable\n"
+    assert files_under(out) == {}
+
+
 # --------------------------------------------------------------------------- decompress and test
 
 
