@@ -60,6 +60,7 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
             yield function(item)
         return
     window = len(items) if window is None else max(1, window)
+    others = set(multiprocessing.active_children())
     pool = ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork"),
                                initializer=_worker_start, initargs=(os.getpid(),))
     pending: deque = deque()
@@ -83,6 +84,12 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
         for future in pending:
             future.cancel()
         pool.shutdown(wait=True, cancel_futures=True)
+        # A pool that failed to start all its workers (fork refused: EAGAIN, ENOMEM) has no thread
+        # to stop those it started, and the interpreter would wait for them at exit forever. They
+        # hold nothing to clean up; one may not yet have left the parent's SIGTERM handler.
+        for process in set(multiprocessing.active_children()) - others:
+            process.kill()
+            process.join()
 
 
 def _call(function: Callable, item) -> tuple[list, object, tuple[BaseException, str] | None]:

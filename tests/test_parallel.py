@@ -10,6 +10,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import shutil
+import threading
 import subprocess
 import sys
 import warnings
@@ -24,6 +25,7 @@ from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveReader
 from mocapzip.parallel import imap, parallel_map
+from mocapzip.progress import progress
 
 GOLDEN = Path(__file__).parent / "golden"
 MCZ = Path(sys.executable).with_name("mcz")
@@ -96,6 +98,44 @@ def test_stopping_early_cancels_what_has_not_started(tmp_path):
     results.close()  # waits for the items the workers hold, cancels the others
     assert len(os.listdir(tmp_path)) <= 2 + window
     assert multiprocessing.active_children() == []
+
+
+def test_progress_bars_start_no_thread_that_workers_would_fork_with():
+    """Forking a process that runs a second thread risks a deadlock in the child (and Python 3.12 on
+    warns of it on every fork): a progress bar, shown or not, starts no thread (tqdm's monitor)."""
+    before = set(threading.enumerate())
+    with progress(total=3, desc="test") as bar:
+        bar.update()
+        for _ in progress(range(3)):
+            assert set(threading.enumerate()) <= before
+
+
+# Runs the real `mcz` with its second fork refused, as under a process limit (EAGAIN).
+SECOND_FORK_REFUSED = r"""
+import errno, os
+from mocapzip.cli.main import main
+
+real_fork, forks = os.fork, []
+
+def fork():
+    forks.append(None)
+    if len(forks) == 2:
+        raise OSError(errno.EAGAIN, os.strerror(errno.EAGAIN))
+    return real_fork()
+
+os.fork = fork
+main(prog_name="mcz")
+"""
+
+
+def test_a_pool_that_cannot_start_all_its_workers_ends_the_run(tmp_path):
+    """One worker started, the second refused: one line, exit 1, and no wait for the first at exit."""
+    out = tmp_path / "out"
+    result = subprocess.run([sys.executable, "-c", SECOND_FORK_REFUSED, "decompress", GOLDEN / "lossy_v4.mcz",
+                             "-o", out, "-j", "2"], capture_output=True, text=True, timeout=DEADLINE)
+    assert result.returncode == 1
+    assert result.stderr == "mcz: error: [Errno 11] Resource temporarily unavailable\n"
+    assert files_under(out) == {}
 
 
 # --------------------------------------------------------------------------- decompress and test
