@@ -28,12 +28,23 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 
 
-_RUN_HERE: set = set()  # functions this process has run before forking workers for them (`imap`)
+_RUN_HERE: set = set()  # functions this process has run before forking workers for them (`parallel_map`)
 
 
 def parallel_map(function: Callable, items, jobs: int) -> list:
-    """`[function(item) for item in items]`, in `jobs` forked processes when that can help."""
-    return list(imap(function, list(items), jobs))
+    """`[function(item) for item in items]`, in `jobs` forked processes when that can help.
+
+    The first time a function is mapped, its first item runs here, before the fork: numba then
+    loads the compiled kernels it uses once, and the workers of every later pool have them (each
+    would otherwise load them again from the cache, about a second per worker and pool; the
+    encoder starts three pools per class).
+    """
+    items = list(items)
+    done = []
+    if jobs > 1 and len(items) > 1 and function not in _RUN_HERE:
+        _RUN_HERE.add(function)
+        done, items = [function(items[0])], items[1:]
+    return done + list(imap(function, items, jobs))
 
 
 def imap(function: Callable, items: Sequence, jobs: int, window: int | None = None) -> Iterator:
@@ -48,13 +59,6 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
     running behind. A consumer that may stop early must close the generator
     (`contextlib.closing`), so that this happens at once rather than when it is collected.
     """
-    if jobs > 1 and len(items) > 1 and function not in _RUN_HERE:
-        # The first time a function goes to workers, its first item runs here, before the fork:
-        # numba then loads the compiled kernels it uses once, and every worker forked later has
-        # them (each would otherwise load them again from the cache: about a second per pool).
-        _RUN_HERE.add(function)
-        yield function(items[0])
-        items = items[1:]
     if jobs <= 1 or len(items) < 2 or "fork" not in multiprocessing.get_all_start_methods():
         for item in items:
             yield function(item)

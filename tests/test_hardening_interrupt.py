@@ -65,6 +65,8 @@ main(prog_name="mcz")
 
 # Runs the real `mcz` with one function held: its first call, in whichever process makes it, creates
 # the marker file and waits for the test's release file (or for the signal, in the main process).
+# With MCZ_TEST_HOLD_IN_WORKER set, only a worker process's call is held (with -j, the main process
+# runs the first item itself, before forking: `parallel.imap`).
 # HELD_CHILD.format(module=..., name=...) holds `module.name` (a function or a method).
 HELD_CHILD = r"""
 import importlib, os, sys, time
@@ -72,12 +74,15 @@ from pathlib import Path
 from mocapzip.cli.main import main
 
 marker = Path(os.environ["MCZ_TEST_MARKER"])
+main_pid = os.getpid()
 owner = importlib.import_module("{module}")
 for part in "{name}".split(".")[:-1]:
     owner = getattr(owner, part)
 real = getattr(owner, "{name}".split(".")[-1])
 
 def held(*args, **kwargs):
+    if os.environ.get("MCZ_TEST_HOLD_IN_WORKER") and os.getpid() == main_pid:
+        return real(*args, **kwargs)
     if not marker.exists():
         marker.touch()
         release = marker.with_suffix(".release")
@@ -128,7 +133,7 @@ def test_compress_of_a_real_folder_interrupted_mid_run(shared_data, tmp_path, si
     holds its first clip coding until the test has sent it (a state, not a clock)."""
     out, marker = tmp_path / "out", tmp_path / "marker"
     out.mkdir()
-    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker), **({"MCZ_TEST_HOLD_IN_WORKER": "1"} if jobs == "2" else {})}
     proc = start([sys.executable, "-c", CODING_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz",
                   "-j", jobs], env)
     wait_for(marker, proc)
@@ -181,7 +186,7 @@ def test_ctrl_c_in_a_terminal_stops_every_worker_in_one_line(shared_data, tmp_pa
     comes while a worker holds its first clip (a state, not a clock)."""
     out, marker = tmp_path / "out", tmp_path / "marker"
     out.mkdir()
-    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker), "MCZ_TEST_HOLD_IN_WORKER": "1"}
     if command == "compress":
         args = [CODING_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz"]
     else:
@@ -204,7 +209,7 @@ def test_a_worker_killed_mid_run_ends_the_run_in_one_line(tmp_path):
     """A worker of decompress -j 2 killed (as the OOM killer would) while it holds its first file: the
     parent says so in one line, exits 1, and leaves no file behind."""
     out, marker = tmp_path / "out", tmp_path / "marker"
-    env = {**os.environ, "MCZ_TEST_MARKER": str(marker)}
+    env = {**os.environ, "MCZ_TEST_MARKER": str(marker), "MCZ_TEST_HOLD_IN_WORKER": "1"}
     proc = start([sys.executable, "-c", DECODING_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out, "-j", "2"], env)
     wait_for(marker, proc)
     workers = [int(entry) for entry in os.listdir("/proc") if entry.isdigit() and _parent_of(int(entry)) == proc.pid]
