@@ -2,9 +2,10 @@
 
     python benchmarks/make_docs.py [--data ../shared/data] [--docs docs] [--work bench-out] [-j 2]
 
-Runs, in order: ratio_distortion.py (the whole shared CMU set and the curves), speed_memory.py
-(largest clips, BLAS threads, bounded memory; the whole-set speed comes from the previous run) and
-thesis_tables.py (tables 4.1 to 4.4). Every number on the page comes from these runs; the page
+Runs, in order: speed.py (compress and decompress of the shared CMU set beside xz and zstd, cold
+and warm, -j 1 and -j 2: first, while the machine is quietest), ratio_distortion.py (the whole
+shared CMU set and the curves), speed_memory.py (largest clips, BLAS threads, bounded memory; the
+whole-set speed comes from the previous run) and thesis_tables.py (tables 4.1 to 4.4). Every number on the page comes from these runs; the page
 records the command, the git commit and this run's own output.
 """
 
@@ -29,6 +30,7 @@ REPO = HERE.parent
 sys.path.insert(0, str(HERE))
 
 import ratio_distortion  # noqa: E402
+import speed  # noqa: E402
 import speed_memory  # noqa: E402
 import thesis_tables  # noqa: E402
 
@@ -65,6 +67,10 @@ def main(argv=None) -> int:
     log(f"mocapzip {__version__}, commit {git['commit'] if git else 'unknown'}"
         + (" with uncommitted changes" if git and git["uncommitted_changes"] else ""))
     log(f"data: {data}; BLAS threads: 1 per process; jobs: {args.jobs}")
+    log("== speed: compress and decompress beside xz and zstd")
+    sp = speed.run(data, "cmu/07" if args.quick else "cmu", log)
+    (args.work / "speed.json").parent.mkdir(parents=True, exist_ok=True)
+    (args.work / "speed.json").write_text(json.dumps(sp, indent=1) + "\n")
     log("== ratio and distortion: whole shared CMU set, and curves")
     rd = ratio_distortion.run(data, args.work, args.docs, args.jobs, log, quick=args.quick)
     log("== speed and memory")
@@ -84,13 +90,13 @@ def main(argv=None) -> int:
 
     command = "python benchmarks/make_docs.py" + ("" if argv is None and len(sys.argv) == 1 else
                                                   " " + shlex.join(sys.argv[1:] if argv is None else argv))
-    page = render(command, git, elapsed, rd, sm, tt, head, RULES, log_lines, data)
+    page = render(command, git, elapsed, rd, sm, sp, tt, head, RULES, log_lines, data)
     (args.docs / "benchmarks.md").write_text(page)
     print(f"wrote {args.docs / 'benchmarks.md'}", file=sys.stderr)
     return 0
 
 
-def render(command, git, elapsed, rd, sm, tt, head, rules, log_lines, data) -> str:
+def render(command, git, elapsed, rd, sm, sp, tt, head, rules, log_lines, data) -> str:
     whole = rd["whole"]
     env = whole["environment"]
     commit = git["commit"] if git else "unknown"
@@ -121,6 +127,15 @@ def render(command, git, elapsed, rd, sm, tt, head, rules, log_lines, data) -> s
                    f"each clip alone; median **{cs['median']:.3f}**, worst **{cs['worst']:.3f}** ({cs['worst_clip']}) "
                    f"against Hou et al. with one basis per subject. Speed against xz -9 in the same run: encode "
                    f"**{v['encode_speed']:.2f} x**, decode **{v['decode_speed']:.2f} x** (above 1: mcz is faster).")
+    rows = {row["name"]: row for row in sp["rows"]}
+    fastest_decompress = max((r for r in sp["rows"] if r["name"].startswith("mcz decompress")),
+                             key=lambda r: r["frames_per_second"])
+    out.append(f"* **Speed** ({sp['set']}, 1 cm, `python benchmarks/speed.py`): compress with `-j 2` "
+               f"**{rows['mcz compress -j 2']['frames_per_second']:,.0f} frames/s** "
+               f"({rows['mcz compress -j 2']['vs_xz']:.2f} x the speed of xz -9 in the same run), decompress "
+               f"**{fastest_decompress['frames_per_second']:,.0f} frames/s** ({fastest_decompress['name']}; "
+               f"{fastest_decompress['vs_xz']:.2f} x xz -d). The first run after installing compiles mcz's kernels: "
+               f"{rows['mcz compress -j 1, cold start']['seconds'] - rows['mcz compress -j 1']['seconds']:.0f} s more.")
     out += ["", "How to read these: mcz shares one PCA basis per subject across clips and the archive's metadata "
             "across all clips. Hou et al. section IV codes each clip alone with its own basis (the paper's "
             "per-sequence results), so against it mcz's per-clip numbers include the advantage of sharing; the "
@@ -134,7 +149,8 @@ def render(command, git, elapsed, rd, sm, tt, head, rules, log_lines, data) -> s
             thesis_tables.markdown(tt)]
     out += ["## (b) mcz vs Hou et al. 2015 vs xz -9 / zstd -19: ratio and distortion", "",
             ratio_distortion.markdown(rd, Path("docs"))]
-    out += ["## (c) Speed and peak memory", "", speed_memory.markdown(sm)]
+    out += ["## (c) Speed and peak memory", "", "**Speed table** (`python benchmarks/speed.py`)", "",
+            speed.markdown(sp), "", speed_memory.markdown(sm)]
     out += ["## Output of the run", "", "```", *log_lines, "```", ""]
     return "\n".join(out)
 

@@ -235,6 +235,9 @@ class Archive:
         # measured no faster, and HDF5 would reuse the inherited file anyway (it reads with pread;
         # every stream read is checked against its CRC32).
         _SHARED["archive"] = self
+        clips = [entry for entry in entries if entry[0] == "amc"]
+        if jobs > 1 and len(clips) > 1:  # decode one clip here first: numba loads its kernels once, before the
+            self.file_bytes(*clips[0])  # fork, not once in each worker (about a second each)
         try:
             yield from imap(_made_file if keep else _checked_file, entries, jobs, FILES_AHEAD * jobs)
         finally:
