@@ -3,7 +3,7 @@
 The reader trusts nothing in the file (`meta.validate`, `mocapzip.limits`) and dispatches on
 the container's `format_version`: format 4's streams are decoded by the codec modules, older
 ones' differences by `legacy` alone. Every clip goes through one decode tail
-(`representations.weighted.channels_from_weighted`), as the encoder's error check does.
+(`representations.weighted.DecodeTail`), as the encoder's error check does.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.parallel import imap
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
-from mocapzip.representations.weighted import channels_from_weighted, skeleton_params
+from mocapzip.representations.weighted import DecodeTail, skeleton_params
 
 
 class Archive:
@@ -71,6 +71,7 @@ class Archive:
         self._priors: Priors | None = None
         self._bases: dict[int, ClassBasis] = {}
         self._models: dict[int, SkeletonModel] = {}
+        self._tails: dict[tuple[int, ChannelLayout], DecodeTail] = {}
 
     def _json(self, name):
         try:
@@ -136,11 +137,8 @@ class Archive:
                     poses, root = join_decoded(decoded, cores, row["frames"], row["segment_overlap"])
                 else:
                     poses, root = self._reconstruct(name, row["class"], row["frames"])
-                representation = self.stages["representation"]
-                params = {**skeleton_params(model, representation, layout),
-                          "twist": flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])}
-                values = channels_from_weighted(model, representation, layout, poses, root, params,
-                                                self.settings.axis_weight_cm)
+                twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
+                values = self._decode_tail(row["skeleton"], layout).decode(poses, root, twist)
         except ArchiveError:
             raise
         except (ValueError, KeyError, IndexError, EOFError, MocapFormatError) as exc:
@@ -188,6 +186,17 @@ class Archive:
                     raise
                 raise ArchiveError(f"skeletons: skeleton {k} is not a valid ASF ({exc})", self.path) from exc
         return self._models[k]
+
+    def _decode_tail(self, k: int, layout: ChannelLayout) -> DecodeTail:
+        """The decode tail of skeleton k's clips with this layout, built once: its tables and the
+        representation's skeleton params (a rest pose through the encoder) cost more than
+        decoding a short clip."""
+        if (k, layout) not in self._tails:
+            model, representation = self._model(k), self.stages["representation"]
+            self._tails[k, layout] = DecodeTail(model, representation, layout,
+                                                skeleton_params(model, representation, layout),
+                                                self.settings.axis_weight_cm)
+        return self._tails[k, layout]
 
     def _basis(self, k: int) -> ClassBasis:
         if k not in self._bases:

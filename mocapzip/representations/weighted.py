@@ -53,10 +53,8 @@ def channels_from_weighted(model: SkeletonModel, representation: Representation,
     `params`: the representation's (`skeleton_params`, or the original clip's when encoding),
     with "twist", the solved bones' choice of solution (`positions.TwistChoice`), if any.
     """
-    twist = params.get("twist") or TwistChoice()
-    tail = DecodeTail(model, representation, layout, params, axis_weight_cm)
-    values, _ = tail.channels(weighted_poses, root, flips=tail.flip_flags(twist.flips, len(weighted_poses)))
-    return values
+    return DecodeTail(model, representation, layout, params, axis_weight_cm).decode(weighted_poses, root,
+                                                                                   params.get("twist"))
 
 
 class DecodeTail:
@@ -176,6 +174,12 @@ class DecodeTail:
             if j in flips:
                 flags[r] = flips[j]
         return flags
+
+    def decode(self, weighted_poses: np.ndarray, root: np.ndarray | None, twist: TwistChoice | None) -> np.ndarray:
+        """The decoder's channel values: twists as `twist` stored them (None: the default solution)."""
+        flips = (twist or TwistChoice()).flips
+        values, _ = self.channels(weighted_poses, root, flips=self.flip_flags(flips, len(weighted_poses)))
+        return values
 
     def twist_reference(self, original_values: np.ndarray) -> np.ndarray:
         """(F, 2-dof solved bones, 3, 3): their true local rotations (`positions.true_twists`)."""
