@@ -4,3 +4,7 @@ registry (`mocapzip.stages.stage_ids("transform")` and `stage_ids("representatio
 
 TRANSFORMS = ("dct", "dwt", "identity")
 REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
+
+# --max-error's default, as a multiple of -e: it removes gross errors for a few per cent more bytes
+# (docs/fidelity.md, from `python benchmarks/max_error.py`)
+MAX_TO_MEAN = 10.0

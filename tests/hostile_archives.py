@@ -26,10 +26,12 @@ import limited
 from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.codec.entropy.coefficients import Priors, encode_matrices
+from mocapzip.codec.patches import FramePatches
 from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"
-BASES = {"lossy": GOLDEN / "lossy_v4.mcz", "lossless": GOLDEN / "lossless_v4.mcz"}  # two clips: 09_01, 64_01
+# the newest format; two clips, 09_01 (148 frames, 62 values, 25 of them patched) and 64_01
+BASES = {"lossy": GOLDEN / "lossy_v5.mcz", "lossless": GOLDEN / "lossless_v5.mcz"}
 MEMORY_LIMIT = 1 << 30  # address space of each child: far below what any bomb here would take
 COMMANDS = (("test", "-q"), ("info", "--json"), ("decompress", "-q", "-o"))
 
@@ -108,6 +110,18 @@ def _without_root_track(meta: dict, streams: dict) -> None:
     priors = Priors.decode(entropy.decode_bytes(streams["priors"]))
     coded = CodedClip.from_payload(streams["clip/00000"], "primed", priors=priors)
     streams["clip/00000"] = CodedClip(coded.pose_step, coded.pose_ints, coded.root_step, None).payload("primed", priors)
+
+
+def _patches(frames: list[int], levels: list[int], value: int) -> Callable[[], bytes]:
+    """A patch stream for clip 0 (62 values) of as many frames as the row claims (25): `frames` and
+    `levels` first, the others after them; every int `value`."""
+
+    def make() -> bytes:
+        first = list(frames) + list(range(max(frames) + 1, max(frames) + 26 - len(frames)))
+        every = list(levels) + [0] * (25 - len(levels))
+        return FramePatches(1.0, np.array(first), np.array(every), np.full((25, 62), value, np.int64)).payload()
+
+    return make
 
 
 def _zstd_bomb(size: int) -> bytes:
@@ -214,6 +228,18 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("priors_3_bytes", "lossy", _stream("priors", b"abc"), "priors", decoded=True))
     c.append(Case("class_basis_of_a_million_pose_values", "lossy", _stream("class/0000", _wide_basis), "clip/00000",
                   decoded=True))
+    c.append(Case("patch_stream_3_bytes", "lossy", _stream("patch/00000", b"abc"), "patch/00000", decoded=True))
+    c.append(Case("patch_stream_missing", "lossy", _stream("patch/00000", None), "patch/00000: stream missing"))
+    c.append(Case("patches_claimed_beyond_the_clip", "lossy", _set("clips.0.patched_frames", 149),
+                  "meta: clips[0].patched_frames"))
+    c.append(Case("patches_fewer_than_stored", "lossy", _set("clips.0.patched_frames", 24), "patch/00000", decoded=True))
+    c.append(Case("patched_frame_past_the_end", "lossy", _stream("patch/00000", _patches([147, 150], [0, 0], 1)),
+                  "patch/00000", decoded=True))
+    c.append(Case("patch_level_41", "lossy", _stream("patch/00000", _patches([3, 4], [0, 41], 1)), "patch/00000",
+                  decoded=True))
+    c.append(Case("patch_moves_values_past_1e9", "lossy", _stream("patch/00000", _patches([3, 4], [0, 0], 2**61)),
+                  "clip/00000", decoded=True))
+    c.append(Case("patches_in_a_lossless_archive", "lossless", _set("clips.0.patched_frames", 1), "meta: clips[0]"))
     # 5. Meta that is well formed but inconsistent.
     c.append(Case("two_clips_one_path", "lossy", _set("clips.1.path", "09_01.amc"), "meta: clips[1].path"))
     c.append(Case("clip_path_is_a_skeleton", "lossy", _set("clips.1.path", "09.asf"), "meta: clips"))

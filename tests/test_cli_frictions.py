@@ -118,7 +118,8 @@ def test_info_text_table_wording_and_plurals():
     assert "worst clip error" not in text and "1 clips" not in text and "class 09: 1 clip, " in text
     names = [c["name"] for c in report["classes"]]
     for clip in report["clips"]:
-        row = f"{clip['frames']:>7}  {names[clip['class']]:<8}  {clip['error_cm']:>8.3f}  {clip['max_error_cm']:>8.3f}"
+        row = (f"{clip['frames']:>7}  {names[clip['class']]:<8}  {clip['error_cm']:>8.3f}  {clip['p99_error_cm']:>8.3f}  "
+               f"{clip['max_error_cm']:>8.3f}  {clip['patched_frames']:>7}")
         assert any(line.startswith(clip["path"]) and line.endswith(row) for line in text.splitlines())
     short = run("info", "--no-clips", GOLDEN_LOSSY).stdout
     assert "mean cm" not in short and short.splitlines() == [line for line in text.splitlines()

@@ -41,6 +41,8 @@ FRESH = {
     "scaled-dct": ["-r", "scaled", "-e", "1"],
     "normalised-dwt": ["-r", "normalised", "-t", "dwt", "-e", "1"],
     "segmented-auto-classes": ["--segment", "-c", "auto:2", "-e", "1"],
+    "max-error": ["-e", "1", "--max-error", "3"],
+    "segmented-max-error": ["--segment", "-e", "1", "--max-error", "4"],
 }
 # 02_05 is a boxing take that --segment cuts in four
 FRESH_CLIPS = [("09", "09.asf"), ("09", "09_01.amc"), ("09", "09_02.amc"), ("07", "07.asf"), ("07", "07_01.amc"),
@@ -80,6 +82,9 @@ def fresh_archives(tmp_path_factory, shared_data):
         assert result.exit_code == 0, result.output
     with Archive(archives["segmented-auto-classes"]) as archive:  # the settings did what they are here for
         assert any("segments" in row for row in archive.clips) and len(archive.meta["classes"]) == 2
+    for label in ("max-error", "segmented-max-error"):
+        with Archive(archives[label]) as archive:
+            assert any("patched_frames" in row for row in archive.clips), label
     return archives
 
 

@@ -71,6 +71,8 @@ _CLIP = _record(
     {
         "dropped_frames": {"type": "integer", "minimum": 1},
         "twist_flips": {"type": "object", "additionalProperties": {"type": "array", "items": _COUNT}},
+        "p99_error_cm": _ERROR,
+        "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
         "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
         "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
     },
@@ -95,6 +97,7 @@ _SETTINGS = _record(
     },
     {
         "segment": {"type": "boolean"},
+        "max_error_cm": _POSITIVE,
         "coefficient_coder": {"enum": [*stage_ids("coefficient coder"), "auto"]},
         "axes_from_positions": {"type": "boolean"},
     },
@@ -200,13 +203,16 @@ def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: 
         if len(edges) % 2 or any(b <= a for a, b in zip(edges, edges[1:])) or (edges and edges[-1] > row["frames"]):
             raise fail(f"{where}.twist_flips", f"ranges of {bone[:40]!r} are not increasing pairs within the clip")
     if settings["lossless"]:
-        if "segments" in row or "twist_flips" in row:
-            raise fail(where, "a lossless clip has no segments or twist flips")
+        if "segments" in row or "twist_flips" in row or "patched_frames" in row:
+            raise fail(where, "a lossless clip has no segments, twist flips or patches")
         return [f"clip/{i:05d}"]
+    if row.get("patched_frames", 0) > row["frames"]:
+        raise fail(f"{where}.patched_frames", f"{row['patched_frames']} patched frames in a clip of {row['frames']}")
+    patches = [f"patch/{i:05d}"] if "patched_frames" in row else []
     if "segments" not in row:
         if row["class"] >= n_classes:
             raise fail(f"{where}.class", f"index {row['class']} but the archive has {n_classes} classes")
-        return [f"clip/{i:05d}"]
+        return [f"clip/{i:05d}", *patches]
     if not settings.get("segment") or "segment_overlap" not in row:
         raise fail(f"{where}.segments", "segments need the setting 'segment' and the row's 'segment_overlap'")
     if row["segment_overlap"] > min(part["frames"] for part in row["segments"]):
@@ -221,7 +227,7 @@ def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: 
         streams.append(stream)
     if first != row["frames"]:
         raise fail(f"{where}.segments", f"segments cover {first} frames, the clip has {row['frames']}")
-    return streams
+    return streams + patches
 
 
 def _check_relative_path(path: str, field: str, fail) -> None:

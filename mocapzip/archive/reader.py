@@ -26,6 +26,7 @@ from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors, check_matrix_shape
 from mocapzip.codec.entropy.zstd import decode_bytes
+from mocapzip.codec.patches import FramePatches, channel_steps
 from mocapzip.formats.amc import AmcStyle, Motion, format_amc
 from mocapzip.formats.asf import parse_asf
 from mocapzip.formats.errors import MocapFormatError
@@ -139,6 +140,11 @@ class Archive:
                     poses, root = self._reconstruct(name, row["class"], row["frames"])
                 twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
                 values = self._decode_tail(row["skeleton"], layout).decode(poses, root, twist)
+                if "patched_frames" in row:
+                    name = f"patch/{index:05d}"
+                    patches = FramePatches.from_payload(self._reader.read(name), row["frames"], layout.width,
+                                                        row["patched_frames"])
+                    patches.apply(values, channel_steps(model, layout))
         except ArchiveError:
             raise
         except (ValueError, KeyError, IndexError, EOFError, MocapFormatError) as exc:
@@ -216,12 +222,12 @@ class Archive:
 
     def verify_checksums(self) -> None:
         """Check every stream's CRC32 without decoding: cheap, so `info` and `decompress` run it first."""
-        paths = {f"clip/{i:05d}": row["path"] for i, row in enumerate(self.clips)}
+        paths = {f"{kind}/{i:05d}": row["path"] for i, row in enumerate(self.clips) for kind in ("clip", "patch")}
         for name in self._reader.names():
             try:
                 self._reader.read(name)
             except ArchiveError as exc:
-                clip = paths.get(name[:10])  # clip/NNNNN and its segments clip/NNNNN/SSS
+                clip = paths.get("/".join(name.split("/")[:2]))  # clip/NNNNN, its segments clip/NNNNN/SSS, patch/NNNNN
                 if clip is None:
                     raise
                 raise ArchiveError(f"{exc.message} (clip {clip})", self.path) from exc
@@ -362,8 +368,9 @@ def info(archive_path) -> dict:
 def _info_row(row: dict) -> dict:
     """A clip as `info` lists it; a segmented take (--segment) with its segments' frames, classes and errors."""
     out = {k: row[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")}
-    if "dropped_frames" in row:
-        out["dropped_frames"] = row["dropped_frames"]
+    for optional in ("p99_error_cm", "patched_frames", "dropped_frames"):  # p99: format 5 on; patches: --max-error
+        if optional in row:
+            out[optional] = row[optional]
     if "segments" in row:
         out["segments"] = [{k: s[k] for k in ("first", "frames", "class", "error_cm", "max_error_cm")}
                            for s in row["segments"]]

@@ -17,6 +17,7 @@ class Settings:
     """Everything that decides the archive's content; stored in it as JSON."""
 
     error_cm: float = DEFAULT_ERROR_CM
+    max_error_cm: float | None = None  # bound on every joint of every frame (frame patches); None: no bound
     representation: str = "aligned"
     transform: dict = field(default_factory=lambda: {"id": "dct"})
     classes: str = "subject"
@@ -67,7 +68,9 @@ def checked(settings: Settings) -> Settings:
     if settings.coefficient_coder not in written_coders():
         raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
                             f"{FORMAT_VERSION}; choose one of {', '.join(written_coders())}")
-    numbers = [settings.error_cm, settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
+    if settings.max_error_cm is not None and not settings.max_error_cm > 0:
+        raise SettingsError(f"max_error_cm must be above 0, got {settings.max_error_cm}")
+    numbers = [settings.error_cm, *([] if settings.max_error_cm is None else [settings.max_error_cm]), settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
                settings.fps, *(settings.split or [])]
     if not all(math.isfinite(x) for x in numbers):
         raise SettingsError("settings must be finite numbers (no inf or nan)")

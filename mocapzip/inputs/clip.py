@@ -87,6 +87,19 @@ class LoadedClip:
         errors, twist = self._score(poses, root, slice(None), final=True)
         return errors, ({} if twist is None else flip_ranges(twist.flips, self.model))
 
+    def decoded_channels(self, poses: np.ndarray, root: np.ndarray | None) -> np.ndarray:
+        """The channel values (every frame, before the writer rounds them) that the decoder makes of
+        `poses`/`root` with the twist flips `final_check` stores for them."""
+        original, reference = self._originals(slice(None))
+        if len(poses) != len(original):
+            raise ValueError(f"{len(poses)} poses for {len(original)} frames")
+        return self.decode_tail.channels(poses, root, reference=reference)[0]
+
+    def as_written(self, values: np.ndarray) -> np.ndarray:
+        """`values` rounded, in place, to what the AMC text the writer makes of them reads back as."""
+        compiled.round_as_written(values, self.motion.style.notation == "f", self.motion.style.digits)
+        return values
+
     @cached_property
     def decode_tail(self) -> DecodeTail:
         return DecodeTail(self.model, self.representation, self.layout, self.encoded.params, self.axis_weight_cm)
@@ -99,8 +112,7 @@ class LoadedClip:
             raise ValueError(f"{len(poses)} poses for {len(original)} frames")
         values, flips = self.decode_tail.channels(poses, root, reference=reference)
         if final:
-            style = self.motion.style
-            compiled.round_as_written(values, style.notation == "f", style.digits)
+            self.as_written(values)
         error = self.decode_tail.error(values, original)
         if not self.axes_from_positions:
             return error, None

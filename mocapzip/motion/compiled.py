@@ -695,15 +695,14 @@ def joint_distance_stats(original, decoded):
 
 
 @njit(cache=True)
-def fk_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
-                 to_rad, cm_per_unit):
-    """fk_positions + joint_distance_stats fused: no (F, J, 3) array."""
+def fk_joint_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                       to_rad, cm_per_unit):
+    """metrics.joint_distances of fk_positions(values) and `original`: (F, J) cm."""
     F = values.shape[0]
     J = parents.shape[0]
     W = np.empty((J, 3, 3))
     pos = np.empty((J, 3))
-    d = np.empty(F * J)
-    mx = -math.inf
+    d = np.empty((F, J))
     for f in range(F):
         _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                   to_rad, cm_per_unit, W, pos)
@@ -711,11 +710,21 @@ def fk_distances(values, original, parents, link, vct, axis0, col_start, nchan, 
             x = pos[j, 0] - original[f, j, 0]
             y = pos[j, 1] - original[f, j, 1]
             z = pos[j, 2] - original[f, j, 2]
-            v = math.sqrt(x * x + y * y + z * z)
-            d[f * J + j] = v
-            if v > mx or v != v:
-                mx = v
-    return np_sum(d) / (F * J), mx
+            d[f, j] = math.sqrt(x * x + y * y + z * z)
+    return d
+
+
+@njit(cache=True)
+def fk_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                 to_rad, cm_per_unit):
+    """(mean, max) of fk_joint_distances (mean as np.mean: pairwise sum)."""
+    flat = fk_joint_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                              to_rad, cm_per_unit).ravel()
+    mx = -math.inf
+    for v in flat:
+        if v > mx or v != v:
+            mx = v
+    return np_sum(flat) / flat.size, mx
 
 
 @njit(cache=True)

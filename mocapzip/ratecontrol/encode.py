@@ -26,10 +26,12 @@ import numpy as np
 
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct, scale_root
+from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.parallel import parallel_map
+from mocapzip.ratecontrol.max_error import Achieved, achieved, smallest_within
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
 from mocapzip.representations.weighted import joint_position_columns
@@ -64,9 +66,9 @@ _SHARED: dict = {}  # what forked workers read (clips are large: they are inheri
 
 
 def encode_class(clips, transform, settings, jobs: int = 1, accumulator: CovarianceAccumulator | None = None):
-    """Fit the class basis and code each clip within settings.error_cm; return (basis, payloads, errors,
-    twists): each clip's stream (`CodedClip.payload`), achieved (mean, max) error and twist flips
-    (`LoadedClip.final_check`, for its row).
+    """Fit the class basis and code each clip within settings.error_cm; return (basis, codings): per
+    clip a `ClassCoding` (its stream, achieved errors, twist flips and, with settings.max_error_cm,
+    frame patches).
 
     The budget split is a search: for each candidate PCA share, the class keeps the fewest
     components that bring every clip's PCA-only error under that share. Each candidate basis's
@@ -109,24 +111,23 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         best = None
         for basis in candidates:  # in share order: on equal sizes the first share wins
             basis, codings = _coded_with(basis, basis_of, clips, target, settings, jobs)
-            size = len(basis.encode()) + sum(len(payload) for payload, _, _ in codings)
+            size = len(basis.encode()) + sum(coding.size for coding in codings)
             if best is None or size < best[0]:
                 best = (size, basis, codings)
         _, basis, codings = best
     finally:
         _SHARED.clear()
-    payloads, errors, twists = zip(*codings)
-    return basis, list(payloads), list(errors), list(twists)
+    return basis, codings
 
 
 def _coded_with(basis: ClassBasis, basis_of, clips, target: float, settings, jobs: int):
-    """(basis, per clip (payload, error, twists)): every clip coded with `basis`, stored finer
+    """(basis, per clip its `ClassCoding`): every clip coded with `basis`, stored finer
     (`basis_of(q, precision)`) while some clip cannot meet the target because of its rounding."""
     precision = settings.basis_precision
     for _ in range(BASIS_REFINEMENTS):
         _SHARED["basis"] = basis
         codings = parallel_map(_code_clip, range(len(clips)), jobs)
-        worst, index = max((error[0], i) for i, (_, error, _) in enumerate(codings))
+        worst, index = max((coding.achieved.mean, i) for i, coding in enumerate(codings))
         if worst <= target:
             return basis, codings
         precision /= 4  # the rounded basis alone costs too much error: store it finer
@@ -178,12 +179,35 @@ def _estimated_sizes(index: int) -> tuple[list[int], float]:
     return sizes, scale
 
 
-def _code_clip(index: int) -> tuple[bytes, tuple[float, float], dict]:
-    """The clip coded with the class basis: (payload, (mean, max) error, twist flips)."""
-    settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
-    coding = code_clip(clip, _SHARED["basis"], transform, settings.error_cm, settings.dead_zone, settings.split,
-                       _SHARED["scales"][index])
-    return coding.coded.payload(), coding.error, coding.twists
+@dataclass
+class ClassCoding:
+    """A clip's coding as its class stores it: the stream, its row's errors and twist flips, and its patches."""
+
+    payload: bytes  # `CodedClip.payload`, "context" coder
+    achieved: Achieved  # every joint of every frame as written, patches applied
+    patches: FramePatches | None  # `max_error.achieved`: None without a bound, or with no frame beyond it
+    twists: dict  # twist flips for the clip's row (`LoadedClip.final_check`)
+
+    @cached_property
+    def patch_bytes(self) -> int:
+        return 0 if self.patches is None else len(self.patches.payload())
+
+    @property
+    def size(self) -> int:
+        return len(self.payload) + self.patch_bytes
+
+
+def _code_clip(index: int) -> ClassCoding:
+    """The clip coded with the class basis, and what it achieves; with settings.max_error_cm, at the
+    mean aim that needs the fewest bytes with its patches (`max_error.smallest_within`)."""
+    settings, clip, transform, basis = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
+
+    def coded_at(target: float) -> ClassCoding:
+        coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, _SHARED["scales"][index])
+        decoded = reconstruct(coding.coded, basis, transform, settings.dead_zone, clip.motion.n_frames)
+        return ClassCoding(coding.coded.payload(), *achieved(clip, *decoded, settings.max_error_cm), coding.twists)
+
+    return smallest_within(coded_at, settings.error_cm, settings.max_error_cm)
 
 
 @dataclass

@@ -231,6 +231,12 @@ class DecodeTail:
         return compiled.fk_distances(np.ascontiguousarray(values, dtype=np.float64),
                                      np.ascontiguousarray(original_positions, dtype=np.float64), *self._fk_tables())
 
+    def joint_distances(self, values: np.ndarray, original_positions: np.ndarray) -> np.ndarray:
+        """(F, J) distance in cm between each joint of channel `values` and of `original_positions`."""
+        return compiled.fk_joint_distances(np.ascontiguousarray(values, dtype=np.float64),
+                                           np.ascontiguousarray(original_positions, dtype=np.float64),
+                                           *self._fk_tables())
+
     def _fk_tables(self) -> tuple:
         return (self.parents, self.link, self.offset_in_axes, np.ascontiguousarray(self.model.axis[0]),
                 self.first_column, self.n_channels, self.channel_kind, self.channel_axis, self.to_rad,

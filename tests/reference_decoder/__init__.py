@@ -43,6 +43,11 @@ def decode_archive(path) -> dict:
                                                        basis.shape[1], root_track, priors)
                 return mean, basis, pose, root
 
-            values[row["path"]] = geometry.lossy_channels(settings, version, row, skeletons[row["skeleton"]],
-                                                          coefficients)
+            decoded = geometry.lossy_channels(settings, version, row, skeletons[row["skeleton"]], coefficients)
+            if "patched_frames" in row:
+                if version < 5:
+                    raise ValueError("patched_frames in a format before 5")
+                geometry.add_patches(decoded, streams.frame_patches(container.read(f"patch/{index:05d}"), row),
+                                     row, skeletons[row["skeleton"]])
+            values[row["path"]] = decoded
         return values

@@ -648,3 +648,17 @@ def lossy_channels(settings, format_version, row, skeleton_text, coefficients):
     if not np.all(np.isfinite(values)) or np.any(np.abs(values) > 1e9):
         raise ValueError("decoded values not finite or beyond 1e9")
     return values
+
+
+def add_patches(values, patches, row, skeleton_text):
+    """§8a: the frame patches added to the decoded values, in place."""
+    step_cm, frames = patches
+    sk = Skeleton(skeleton_text, False)
+    to_unit = 180.0 / PI if row["angle_unit"] == "deg" else 1.0
+    base = []
+    for name, count in zip(row["bones"], row["counts"]):
+        for channel in sk.channels[sk.index[name]][:count]:
+            base.append(to_unit / 100.0 if channel[0] == "r" else 1.0 / sk.cm_per_unit)
+    base = np.array(base)
+    for frame, level, ints in frames:
+        values[frame] = values[frame] + ints.astype(np.float64) * (base * (step_cm * 2.0 ** -level))

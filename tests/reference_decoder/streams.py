@@ -8,6 +8,7 @@ does not end exactly where the end-of-stream rule says.
 """
 
 import math
+import struct
 import zlib
 
 import numpy as np
@@ -315,7 +316,7 @@ def class_basis(data: bytes, format_version: int) -> tuple[np.ndarray, np.ndarra
     elif format_version == 2:
         mean_col, big_b = decode_matrices(reader.rest(), [(m_width, 1), (m_width, q)], version=1)
         mean_int = mean_col[:, 0]
-    elif format_version in (3, 4):
+    elif format_version >= 3:
         mean_col, off, resid = decode_matrices(
             reader.rest(), [(m_width, 1), (m_width, 1), (m_width, q)], version=1)
         mean_int = mean_col[:, 0]
@@ -366,7 +367,7 @@ def clip_coefficients(data: bytes, format_version: int, coder: str, rows: int, c
         for mat, shape in zip(mats, expected):
             if mat.shape != shape:
                 raise ValueError(f"clip: blob shape {mat.shape}, expected {shape}")
-    elif format_version in (2, 3, 4):
+    elif format_version >= 2:
         allowed = ("context",) if format_version == 2 else ("context", "primed")
         if coder not in allowed:
             raise ValueError(f"clip: coder {coder!r} not allowed in format {format_version}")
@@ -381,3 +382,25 @@ def clip_coefficients(data: bytes, format_version: int, coder: str, rows: int, c
     if root_track:
         root = mats[1].astype(np.float64) * _step(float(root_step), "root_step")
     return pose, root
+
+
+# --------------------------------------------------------------------------- patch/NNNNN (format 5)
+
+def frame_patches(data: bytes, row: dict) -> tuple[float, list]:
+    """`patch/NNNNN`: (step_cm, [(frame, level, ints), ...]) for the row's `patched_frames`."""
+    count, width = row["patched_frames"], sum(row["counts"])
+    step_cm = _step(struct.unpack_from("<f", data, 0)[0], "patch step_cm")
+    head, stored = decode_matrices(data[4:], [(count, 2), (count, width)], 1)
+    patches, frame = [], -1
+    for i in range(count):
+        gap, level = int(head[i, 0]), int(head[i, 1])
+        if gap < 0 or not 0 <= level <= 40:
+            raise ValueError(f"patch row {i}: gap {gap}, level {level}")
+        ints = stored[i].copy()
+        if i and gap == 0 and level == patches[-1][1]:
+            ints += patches[-1][2]
+        frame += 1 + gap
+        if frame >= row["frames"]:
+            raise ValueError(f"patched frame {frame} is past the clip's {row['frames']} frames")
+        patches.append((frame, level, ints))
+    return step_cm, patches
