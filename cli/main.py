@@ -47,18 +47,30 @@ def jobs_option(work: str):
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=120.0, show_default=True, help="Frame rate for durations (ASF/AMC do not store it).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+@click.option("--check", is_flag=True,
+              help="Also list glitches in the source, per clip, bone and frames: joints that jump faster than "
+                   "25 m/s, angles a quarter turn beyond the ASF's limits, values held for 30 frames or more, "
+                   "bones zeroed (docs/fidelity.md). They are reported, not errors: the exit code stays 0.")
 @reports_errors
-def inspect(paths, asf, fps, as_json):
+def inspect(paths, asf, fps, as_json, check):
     """Show the clips under PATHS (ASF/AMC files or folders, searched recursively).
 
     Per clip: frames, skeleton, degrees of freedom and duration; then totals.
     Every file is fully parsed, so `inspect` also reports damaged input.
+
+    \b
+    Examples:
+      mcz inspect ../shared/data/cmu
+      mcz inspect ../shared/data/cmu/01 --check     what is broken in the source
     """
     from mocapzip.inputs.inspect import inspect_paths
 
-    report = inspect_paths(paths, asf=asf, fps=fps)
+    report = inspect_paths(paths, asf=asf, fps=fps, check=check)
     if as_json:
         click.echo(json.dumps(report, indent=2))
+        return
+    if check:
+        _glitch_lines(report["clips"])
         return
     rows = report["clips"]
     width = max([len(r["path"]) for r in rows] + [4])
@@ -68,6 +80,21 @@ def inspect(paths, asf, fps, as_json):
     t = report["total"]
     click.echo(f"{'total: ' + _count(t['clips'], 'clip'):<{width}}  {t['frames']:>7}  {'':>4}  {t['seconds']:>8.2f}  "
                f"{_count(t['skeletons'], 'skeleton')}, {t['bytes'] / 1e6:.1f} MB of AMC")
+
+
+def _glitch_lines(clips: list[dict]) -> None:
+    """`inspect --check`: one line per glitch, then how many, in how many clips."""
+    from mocapzip.inputs.glitches import Glitch
+
+    found = 0
+    for clip in clips:
+        for glitch in clip.get("glitches", []):
+            click.echo(f"{clip['path']}: {Glitch(**glitch)}")
+        found += len(clip.get("glitches", []))
+    flagged = sum(1 for clip in clips if clip.get("glitches"))
+    unchecked = sum(1 for clip in clips if "glitches" not in clip)
+    note = f" ({_count(unchecked, 'clip')} without a skeleton, not checked)" if unchecked else ""
+    click.echo(f"{found:,} glitch{'' if found == 1 else 'es'} in {_count(flagged, 'clip')} of {len(clips)}{note}")
 
 
 def _count(n: int, noun: str) -> str:

@@ -154,8 +154,10 @@ main(prog_name="mcz")
 def test_ctrl_c_during_start_up_is_one_line(tmp_path):
     marker = tmp_path / "importing"
     env = {**os.environ, "MCZ_TEST_MARKER": os.fspath(marker)}
+    # SIGINT as a terminal gives it: a test run started in the background (nohup, `&`) ignores it, and children inherit that
     child = subprocess.Popen([sys.executable, "-c", SLOW_START, "info", os.fspath(GOLDEN_LOSSY)], env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         for _ in range(600):
             if marker.exists() or child.poll() is not None:

@@ -15,7 +15,7 @@ import json
 import os
 import time
 import warnings
-from collections import defaultdict
+from collections import Counter, defaultdict
 from contextlib import closing
 from dataclasses import asdict, dataclass, field, replace
 
@@ -37,6 +37,7 @@ from mocapzip.formats.mcz import ArchiveWriter
 from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
+from mocapzip.inputs.glitches import find_glitches
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
 from mocapzip.parallel import imap, parallel_map
 from mocapzip.progress import progress
@@ -173,6 +174,7 @@ class _FirstPass:
     rows: list[dict] = field(default_factory=list)  # their rows in meta; class and errors come later
     classes: list[str] = field(default_factory=list)  # each clip's class, if paths decide it (not -c auto)
     poses: dict[str, CovarianceAccumulator] = field(default_factory=dict)  # weighted poses by class (lossy)
+    glitches: Counter = field(default_factory=Counter)  # glitches in the source by kind (lossy), and "clips"
 
 
 def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Settings, writer: ArchiveWriter,
@@ -192,7 +194,7 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
     else:  # lossless clips share no basis: there is nothing to group
         name_class = (lambda source: "all") if settings.lossless else None
     scan = _FirstPass()
-    _SHARED["reader"] = reader  # the workers fork from here
+    _SHARED.update(reader=reader, fps=settings.fps)  # the workers fork from here
     try:
         with closing(imap(_read_clip, sources, jobs, CLIPS_AHEAD * jobs)) as read:
             for source in progress(sources, desc="read", unit="clip"):
@@ -205,7 +207,7 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                     failure = failure or (outcome if isinstance(outcome, Exception) else None)
                     if failure is not None:
                         raise failure
-                    clip, stream = outcome
+                    clip, stream, glitches = outcome
                     clip.model = model
                     if not settings.lossless:
                         _check_codable(clip)
@@ -215,6 +217,7 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                     record_skip(skipped, source, exc)
                     continue
                 scan.rows.append(_clip_row(clip))
+                scan.glitches.update({**glitches, "clips": 1} if glitches else {})
                 if name_class is not None:
                     scan.classes.append(name_class(source))
                 if settings.lossless:
@@ -228,7 +231,19 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                 scan.sources.append(source)
     finally:
         _SHARED.clear()
+    _report_glitches(scan.glitches)
     return scan
+
+
+def _report_glitches(found: Counter) -> None:
+    """One warning for the glitches found in the source: reported, never fixed (the bounds hold
+    against the source as written)."""
+    total = sum(n for kind, n in found.items() if kind != "clips")
+    if total:
+        kinds = ", ".join(f"{kind} {found[kind]}" for kind in ("jump", "limits", "frozen", "zeroed") if found[kind])
+        warnings.warn(f"{total} glitch{'' if total == 1 else 'es'} in the source, in {found['clips']} "
+                      f"clip{'' if found['clips'] == 1 else 's'} ({kinds}); kept as written, the errors are measured "
+                      "against them; `mcz inspect --check` lists them", stacklevel=2)
 
 
 CLIPS_AHEAD = 2  # clips read ahead of the one taken in, per worker: each may be tens of MB
@@ -236,21 +251,25 @@ CLIPS_AHEAD = 2  # clips read ahead of the one taken in, per worker: each may be
 _SHARED: dict = {}  # what the forked workers of the first pass read (`_read_clip`)
 
 
-def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None] | MocapFormatError | OSError:
+def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None, Counter] | MocapFormatError | OSError:
     """The first pass's work on one clip, in a worker (or here, with one job): the clip read,
-    without its skeleton model (the caller has it: sent back, it would be a copy per clip), and
-    its lossless stream (None if lossy); or the error that stopped its reading, to be raised
-    (or the clip skipped) at its turn. The skeleton's warnings are the caller's to give."""
+    without its skeleton model (the caller has it: sent back, it would be a copy per clip), its
+    lossless stream (None if lossy) and its glitches by kind (lossy: `inputs.glitches`); or the
+    error that stopped its reading, to be raised (or the clip skipped) at its turn. The
+    skeleton's warnings are the caller's to give."""
     reader = _SHARED["reader"]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            reader.skeleton(source.asf)
+            skeleton, model = reader.skeleton(source.asf)
         clip = reader.read(source)
     except (MocapFormatError, OSError) as exc:
         return exc
+    glitches = Counter()
+    if clip.positions is not None:
+        glitches.update(g.kind for g in find_glitches(skeleton, model, clip.motion, clip.positions, _SHARED["fps"]))
     clip.model = None
-    return clip, encode_channels(clip.motion.values) if clip.encoded is None else None
+    return clip, encode_channels(clip.motion.values) if clip.encoded is None else None, glitches
 
 
 def _check_codable(clip: LoadedClip) -> None:

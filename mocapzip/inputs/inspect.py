@@ -1,4 +1,5 @@
-"""`mcz inspect`: parse every clip under the inputs and summarise it (frames, dof, duration)."""
+"""`mcz inspect`: parse every clip under the inputs and summarise it (frames, dof, duration);
+with `--check`, also list the glitches in it (`inputs.glitches`)."""
 
 from __future__ import annotations
 
@@ -8,15 +9,19 @@ from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import find_clips
+from mocapzip.inputs.glitches import find_glitches
+from mocapzip.motion.kinematics import forward
+from mocapzip.motion.skeleton import SkeletonModel
 from mocapzip.progress import progress
 
 
-def inspect_paths(paths, asf=None, fps: float = 120.0) -> dict:
-    """A JSON-ready report: one row per clip and the totals. Raises MocapFormatError on bad input."""
+def inspect_paths(paths, asf=None, fps: float = 120.0, check: bool = False) -> dict:
+    """A JSON-ready report: one row per clip and the totals; with `check`, each clip's glitches
+    (`inputs.glitches`: needs its skeleton). Raises MocapFormatError on bad input."""
     clips = find_clips(paths, asf=asf, require_skeleton=False)
     if not clips:
         raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, paths)))
-    skeletons = {}
+    skeletons, models = {}, {}
     rows = []
     for clip in progress(clips, desc="inspect", unit="clip"):
         skeleton = None
@@ -33,6 +38,12 @@ def inspect_paths(paths, asf=None, fps: float = 120.0) -> dict:
             "skeleton": None if clip.asf is None else os.fspath(clip.asf),
             "bytes": os.path.getsize(clip.amc),
         })
+        if check and skeleton is not None:
+            if clip.asf not in models:
+                models[clip.asf] = SkeletonModel.from_asf(skeleton)
+            model = models[clip.asf]
+            positions = forward(model, motion.values, motion).positions
+            rows[-1]["glitches"] = [g.as_dict() for g in find_glitches(skeleton, model, motion, positions, fps)]
     total = {
         "clips": len(rows),
         "frames": sum(r["frames"] for r in rows),
