@@ -7,7 +7,7 @@ import os
 
 import click
 
-from mocapzip.cli.choices import REPRESENTATIONS, TRANSFORMS
+from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, max_error_value
 from mocapzip.cli.errors import reports_errors
 
 CODEC_CHOICES = ("mcz", "hou", "hou-shared", "xz", "zstd")
@@ -66,16 +66,21 @@ def _codecs(values):
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, allow_dash=True), help="Write the full report as JSON ('-': stdout).")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, allow_dash=True), help="Write one row per run and clip/class/overall.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Draw ratio-distortion curves (PNG; needs mocapzip[plot]).")
+@click.option("--max-error", "max_error", metavar="CM|none", callback=max_error_value, default=None,
+              help="mcz's bound on every joint of every frame, as compress takes it. Default: as compress, "
+                   f"{MAX_TO_MEAN:g} x each -e; 'none': no bound.")
 @click.option("--per-clip", is_flag=True, help="Also print one line per clip.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no table (files are still written).")
 @reports_errors
 def bench(inputs, errors, representations, transforms, wavelet, classes, splits, codecs, groups, asf, jobs,
-          json_path, csv_path, plot_path, per_clip, quiet):
+          json_path, csv_path, plot_path, max_error, per_clip, quiet):
     """Compress and decompress the clips under INPUTS and report size, ratio, error and speed,
     per clip, per motion class and overall, next to xz -9, zstd -19 and Hou et al. 2015.
 
     Errors are measured end to end: decompressed AMC text read back and run through forward
-    kinematics (Hou et al. code joint positions, so theirs are measured on positions).
+    kinematics (Hou et al. code joint positions, so theirs are measured on positions): the
+    mean, 99th percentile and max joint error, and foot skate, how much faster (cm/s) the
+    source's planted feet slide once decoded (docs/fidelity.md).
     Several values of -e/-r/-t/-c/--split make a sweep: every combination is one mcz run.
 
     \b
@@ -97,7 +102,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
     options = bench_module.BenchOptions(
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
         transforms=list(transforms) or ["dct"], classes=list(classes) or ["subject"], splits=_splits(splits),
-        codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet)
+        codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error)
     report = bench_module.run_bench(options)
     if json_path:
         _write(json_path, json.dumps(report, indent=1) + "\n")

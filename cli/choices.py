@@ -1,6 +1,10 @@
-"""Names the options offer, kept here as plain strings so that `mcz --help` starts without
-importing NumPy (0.13 s instead of 0.75 s). tests/test_cli_frictions.py holds them to the
+"""Names and defaults the options offer, kept here as plain values so that `mcz --help` starts
+without importing NumPy (0.13 s instead of 0.75 s). tests/test_cli_frictions.py holds them to the
 registry (`mocapzip.stages.stage_ids("transform")` and `stage_ids("representation")`)."""
+
+import math
+
+import click
 
 TRANSFORMS = ("dct", "dwt", "identity")
 REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
@@ -8,3 +12,23 @@ REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
 # --max-error's default, as a multiple of -e: it removes gross errors for a few per cent more bytes
 # (docs/fidelity.md, from `python benchmarks/max_error.py`)
 MAX_TO_MEAN = 10.0
+
+
+def max_error_value(ctx, param, value):
+    """--max-error CM or 'none' (compress, bench); None (not given) stands for the default, MAX_TO_MEAN x -e."""
+    if value is None or value.lower() == "none":
+        return value and "none"
+    try:
+        bound = float(value)
+    except ValueError:
+        bound = math.nan
+    if not (math.isfinite(bound) and bound > 0):
+        raise click.BadParameter(f"expected a number of cm above 0, or 'none'; got {value!r}", ctx, param)
+    return bound
+
+
+def max_error_cm(option, error_cm: float) -> float | None:
+    """The bound --max-error `option` (as `max_error_value` gave it) sets for mean target `error_cm`."""
+    if option is None:
+        return MAX_TO_MEAN * error_cm
+    return None if option == "none" else option

@@ -8,7 +8,6 @@ archive, I/O failure: one line on stderr, never a traceback) and 2 (usage).
 from __future__ import annotations
 
 import json
-import math
 import os
 
 import click
@@ -17,7 +16,7 @@ from click.core import ParameterSource
 from mocapzip import __version__
 from mocapzip.cli.bench import bench
 from mocapzip.cli.classify import classify
-from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS
+from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, max_error_cm, max_error_value
 from mocapzip.cli.errors import reports_errors
 
 
@@ -122,21 +121,8 @@ def _not_stdout(ctx, param, value):
     return value
 
 
-def _max_error(ctx, param, value):
-    """--max-error CM or 'none'; None (not given) stands for the default, MAX_TO_MEAN x -e, set in `compress`."""
-    if value is None or value.lower() == "none":
-        return value and "none"
-    try:
-        bound = float(value)
-    except ValueError:
-        bound = math.nan
-    if not (math.isfinite(bound) and bound > 0):
-        raise click.BadParameter(f"expected a number of cm above 0, or 'none'; got {value!r}", ctx, param)
-    return bound
-
-
 # Options that only tune the lossy codec: given with --lossless they would be silently ignored.
-LOSSY_ONLY = ("error_cm", "max_error_cm", "representation", "transform", "wavelet", "level", "split", "segment")
+LOSSY_ONLY = ("error_cm", "max_error", "representation", "transform", "wavelet", "level", "split", "segment")
 
 
 def _refuse_lossy_options(ctx: click.Context) -> None:
@@ -155,7 +141,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
               help="The .mcz archive to write (a file: not stdout, `-o -` is refused).")
 @click.option("-e", "--error", "error_cm", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True,
               help="Bound on each clip's mean joint-position error in cm, measured end to end.")
-@click.option("--max-error", "max_error_cm", metavar="CM|none", callback=_max_error, default=None,
+@click.option("--max-error", "max_error", metavar="CM|none", callback=max_error_value, default=None,
               help="Also bound every joint of every frame: none ends up further than CM from the source, "
                    "measured end to end through the written AMC (the frames beyond it are patched). Default: "
                    f"{MAX_TO_MEAN:g} x -e, which removes gross errors (CMU at -e 1: 0.5 % of frames, 3 % more "
@@ -192,7 +178,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
-def compress(inputs, output, error_cm, max_error_cm, lossless, representation, transform, wavelet, level, classes, segment, split,
+def compress(inputs, output, error_cm, max_error, lossless, representation, transform, wavelet, level, classes, segment, split,
              asf, fps, jobs, cache_mb, force, skip_bad, quiet, as_json):
     """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
 
@@ -217,11 +203,8 @@ def compress(inputs, output, error_cm, max_error_cm, lossless, representation, t
     transform_config = {"id": transform}
     if transform == "dwt":
         transform_config.update(wavelet=wavelet, level=level)
-    if max_error_cm is None:
-        max_error_cm = None if lossless else MAX_TO_MEAN * error_cm
-    elif max_error_cm == "none":
-        max_error_cm = None
-    settings = archive.Settings(error_cm=error_cm, max_error_cm=max_error_cm, representation=representation, transform=transform_config,
+    bound = None if lossless else max_error_cm(max_error, error_cm)
+    settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=fps, lossless=lossless,
                                 segment=segment)
     try:

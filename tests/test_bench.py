@@ -79,11 +79,17 @@ def test_mcz_keeps_its_error_promise_end_to_end(report):
         assert row["mean_error_cm"] <= row["p99_error_cm"] <= row["max_error_cm"]
         assert row["skin_error"] > 0
         assert row["mean_error_cm"] == pytest.approx(row["codec_reported_error_cm"], rel=1e-3)
+        assert row["max_error_cm"] <= 10 * TARGET  # compress's default bound on every joint, 10 x -e
+        assert row["contact_frames"] > 0 and row["foot_skate_cm_s"] > 0  # walks: planted feet slide a little
     o = run["overall"]
     assert o["encode_fps"] > 0 and o["decode_fps"] > 0 and o["encode_peak_rss_mb"] > 10
     frames = [r["frames"] for r in run["clips"]]
     expected = sum(r["mean_error_cm"] * f for r, f in zip(run["clips"], frames)) / sum(frames)
     assert o["mean_error_cm"] == pytest.approx(expected)
+    contact = [r["contact_frames"] for r in run["clips"]]  # foot skate: weighed by each clip's planted frames
+    skate = sum(r["foot_skate_cm_s"] * c for r, c in zip(run["clips"], contact)) / sum(contact)
+    assert o["foot_skate_cm_s"] == pytest.approx(skate)
+    assert "every joint <= 10 cm" in run["label"]
 
 
 def test_xz_is_lossless_and_its_bytes_are_xz_minus_9(report, clips, shared_data):
@@ -93,7 +99,7 @@ def test_xz_is_lossless_and_its_bytes_are_xz_minus_9(report, clips, shared_data)
     for row, path in zip(run["clips"], clips):
         assert row["payload_bytes"] == len(lzma.compress(path.read_bytes(), preset=9))
         assert row["bytes"] == pytest.approx(row["payload_bytes"] + len(skeleton) * row["frames"] / frames)
-        assert row["mean_error_cm"] == 0 and row["max_error_cm"] == 0
+        assert row["mean_error_cm"] == 0 and row["max_error_cm"] == 0 and row["foot_skate_cm_s"] == 0
 
 
 @pytest.mark.parametrize("codec", ["hou", "hou-shared"])
@@ -103,7 +109,7 @@ def test_hou_meets_the_target_on_positions(report, codec):
     assert "positions" in run["error_measured_on"]
     for row in run["clips"]:
         assert row["mean_error_cm"] <= TARGET
-        assert row["skin_error"] is None
+        assert row["skin_error"] is None and row["foot_skate_cm_s"] > 0
         assert set(row["hou"]) == {"L", "k", "Q"}
     if codec == "hou-shared":  # one basis for the subject: same L and k, bytes = own stream + basis share
         assert len({(r["hou"]["L"], r["hou"]["k"]) for r in run["clips"]}) == 1

@@ -63,12 +63,14 @@ import numpy as np
 
 from mocapzip import __version__
 from mocapzip.classes.by_name import read_class_table
+from mocapzip.cli.choices import max_error_cm
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import ClipSource, find_clips
 from mocapzip.progress import progress
 
 CODECS = ("mcz", "hou", "hou-shared", "xz", "zstd")
 XZ_PRESET = 9
+BENCH_FPS = 120.0  # the frame rate foot skate is measured at: mcz's default, the CMU and HDM05 rate
 ZSTD_LEVEL = 19
 NO_PCA = "none"  # --classes none: the bench-only "PCA off" emulation
 CLASS_PER_CLIP = "clip"  # --classes clip: one PCA class per clip, in a real archive
@@ -93,6 +95,7 @@ class BenchOptions:
     groups: str | None = None  # table clip -> motion class for the per-class report
     jobs: int = 1
     wavelet: str = "db4"
+    max_error: float | str | None = None  # --max-error: a bound in cm, "none", or None for compress's default (10 x -e)
     hou_grid: dict | None = None  # override of hou.GRID_L/K/Q (tests, quick runs)
     quiet: bool = False
     command: str | None = None  # how the run was invoked (default: the equivalent `mcz bench` command)
@@ -260,12 +263,22 @@ def _measure(clip: Clip, models, decoded_model, decoded_motion) -> tuple[dict, n
                          clip.source.amc)
     decoded_pose = forward(decoded_model, decoded_motion.values, decoded_motion)
     d = joint_distances(pose.positions, decoded_pose.positions)
-    return {**_error_stats(d), "skin_error": skin_error(model, pose, decoded_pose)}, d.astype(np.float32)
+    return ({**_error_stats(d), "skin_error": skin_error(model, pose, decoded_pose),
+             **_skate(model, pose.positions, decoded_pose.positions)}, d.astype(np.float32))
 
 
 def _error_stats(d: np.ndarray) -> dict:
     return {"mean_error_cm": float(d.mean()), "p99_error_cm": float(np.percentile(d, 99)),
             "max_error_cm": float(d.max())}
+
+
+def _skate(model, original: np.ndarray, decoded: np.ndarray) -> dict:
+    """Foot skate (`motion.contacts`): how much faster, in cm/s, the source's planted feet slide once
+    decoded; `contact_frames` weighs it in a set's summary."""
+    from mocapzip.motion.contacts import contacts, foot_skate
+
+    planted = contacts(model, original, BENCH_FPS)
+    return {"foot_skate_cm_s": foot_skate(original, decoded, planted, BENCH_FPS), "contact_frames": int(planted.sum())}
 
 
 # ----------------------------------------------------------------------------- child processes
@@ -413,7 +426,7 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
         classes = os.fspath(table)
     settings = {"error_cm": task["error_cm"], "representation": task["representation"],
                 "transform": _transform_config(task["transform"], options.wavelet), "classes": classes,
-                "split": task["split"]}
+                "split": task["split"], "max_error_cm": max_error_cm(options.max_error, task["error_cm"])}
     path = work / "bench.mcz"
     encoded = _run_child({"op": "compress", "inputs": [os.fspath(p) for p in options.inputs], "output": os.fspath(path),
                           "settings": settings, "asf": options.asf, "jobs": options.jobs}, options.quiet)
@@ -455,7 +468,7 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
     shutil_rmtree(work)
     speed = {"encode_seconds": encoded["seconds"], "decode_seconds": decoded["seconds"],
              "encode_peak_rss_mb": encoded["peak_rss_mb"], "decode_peak_rss_mb": decoded["peak_rss_mb"]}
-    return _finish_run({"codec": "mcz", "label": _mcz_label(task), "target_error_cm": task["error_cm"],
+    return _finish_run({"codec": "mcz", "label": _mcz_label(task, options), "target_error_cm": task["error_cm"],
                         "settings": {**settings, "classes": task["classes"], "jobs": options.jobs},
                         "archive_bytes": file_size, "shared_bytes": shared, "class_bytes": sum(class_bytes.values()),
                         "error_measured_on": "AMC text written by mcz decompress, read back by mocapzip.formats"},
@@ -486,8 +499,12 @@ def shutil_rmtree(path: Path) -> None:
     shutil.rmtree(path, ignore_errors=True)
 
 
-def _mcz_label(task: dict) -> str:
+def _mcz_label(task: dict, options: BenchOptions | None = None) -> str:
+    """The run's label; `options` give its --max-error (the no-PCA emulation, without them, has no bound)."""
     parts = [f"mcz {task['error_cm']:g} cm", task["representation"], task["transform"], f"classes {task['classes']}"]
+    bound = None if options is None else max_error_cm(options.max_error, task["error_cm"])
+    if bound is not None:
+        parts.insert(1, f"every joint <= {bound:g} cm")
     if task["split"]:
         parts.append("split " + ",".join(f"{s:g}" for s in task["split"]))
     return ", ".join(parts)
@@ -571,7 +588,7 @@ def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Pat
     for c, size in zip(clips, sizes):
         share = size + skeleton_bytes[c.source.asf] * c.frames / frames_per_skeleton[c.source.asf]
         rows.append({**_sizes(c, share, size), "mean_error_cm": 0.0, "p99_error_cm": 0.0, "max_error_cm": 0.0,
-                     "skin_error": 0.0})
+                     "skin_error": 0.0, "foot_skate_cm_s": 0.0, "contact_frames": 1})
     shutil_rmtree(work)
     name = {"xz": f"xz -{XZ_PRESET}", "zstd": f"zstd -{ZSTD_LEVEL}"}[codec]
     return _finish_run({"codec": codec, "label": f"{name} (lossless, per AMC file)", "target_error_cm": 0.0,
@@ -623,7 +640,7 @@ def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOpti
             d = np.linalg.norm(decoded - positions, axis=-1)
             distances[clip.path] = d.astype(np.float32)
             rows.append({**_sizes(clip, len(blob), len(blob)), **_error_stats(d), "skin_error": None,
-                         "hou": params.as_dict()})
+                         **_skate(models[clip.source.asf], positions, decoded), "hou": params.as_dict()})
         run = _finish_run({"codec": "hou", "label": f"Hou et al. 2015, best (L, k, Q) per clip for mean error <= {t:g} cm",
                            "target_error_cm": t,
                            "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16,
@@ -673,6 +690,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: Be
                 distances[t][clip.path] = d.astype(np.float32)
                 share = len(stream) + len(basis_blob) * clip.frames / group_frames
                 rows[t].append({**_sizes(clip, share, len(stream)), **_error_stats(d), "skin_error": None,
+                                **_skate(models[clip.source.asf], original, back),
                                 "basis_bytes": len(basis_blob) * clip.frames / group_frames,
                                 "hou": {"L": choice["L"], "k": choice["k"], "Q": x["Q"]}})
     runs = []
@@ -726,6 +744,9 @@ def _summary(rows: list[dict], clips: list[Clip], distances: dict | None) -> dic
     else:
         out["p99_error_cm"] = max(r["p99_error_cm"] for r in rows)
     out["max_error_cm"] = max(r["max_error_cm"] for r in rows)
+    contact = [r.get("contact_frames", 0) for r in rows]
+    if sum(contact) and all("foot_skate_cm_s" in r for r in rows):
+        out["foot_skate_cm_s"] = float(np.dot([r["foot_skate_cm_s"] for r in rows], contact) / sum(contact))
     skins = [r["skin_error"] for r in rows]
     out["skin_error"] = (float(np.dot(skins, [c.frames for c in members]) / frames)
                          if all(s is not None for s in skins) else None)
@@ -823,6 +844,8 @@ def command_line(options: BenchOptions) -> str:
                 args += [flag, v]
     if list(options.codecs) != list(CODECS):
         args += ["--codec", ",".join(options.codecs)]
+    if options.max_error is not None:
+        args += ["--max-error", f"{options.max_error:g}" if options.max_error != "none" else "none"]
     if "dwt" in options.transforms and options.wavelet != "db4":
         args += ["--wavelet", options.wavelet]
     for flag, value in (("--groups", options.groups), ("--asf", options.asf)):
