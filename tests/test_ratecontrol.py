@@ -38,7 +38,7 @@ def test_each_clip_lands_just_under_its_target_with_few_true_scores(subject, tar
         assert coding.checks <= 3 * MAX_CALIBRATIONS  # a handful of true scores, not one per step tried
         assert coding.proxy_scale > 0
         # the error returned is the end-to-end one of the coding returned, every frame as written
-        again, twists = clip.final_check(*reconstruct(coding.coded, basis, transform, settings.dead_zone,
-                                                      clip.motion.n_frames))
-        assert again == coding.error and twists == coding.twists
+        again = clip.final_check(*reconstruct(coding.coded, basis, transform, settings.dead_zone,
+                                              clip.motion.n_frames))
+        assert again.error == coding.error and again.twists == coding.twists
 

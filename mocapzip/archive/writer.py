@@ -97,11 +97,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
                 rows[unit.clip]["class"] = class_names.index(name)
         classes_meta = []
         if not settings.lossless:
-            patches: dict[str, FramePatches] = {}
-            classes_meta, interim = _code_classes(scan, units, unit_class, class_names, reader, settings, writer,
-                                                  patches, jobs)
-            for name, stream in _serialise_patches(patches).items():
-                writer.add(name, stream)
+            classes_meta, interim = _code_classes(scan, units, unit_class, class_names, reader, settings, writer, jobs)
             coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder, jobs)
             for name, stream in clip_streams.items():
                 writer.add(name, stream)
@@ -370,11 +366,11 @@ def _primed_stream(name: str) -> bytes:
 
 
 def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], class_names: list[str],
-                  reader: ClipReader, settings: Settings, writer: ArchiveWriter, patches: dict[str, FramePatches],
+                  reader: ClipReader, settings: Settings, writer: ArchiveWriter,
                   jobs: int) -> tuple[list[dict], dict[str, bytes]]:
-    """Code every class (lossy): add its basis to `writer`, fill in the clips' rows and `patches`
-    (by stream name, until `_serialise_patches`); return the classes' rows in meta and the clip
-    streams as held until `_serialise_clips` (small: coded).
+    """Code every class (lossy): add its basis and the clips' frame patches to `writer`, fill in the
+    clips' rows; return the classes' rows in meta and the clip streams as held until
+    `_serialise_clips` (small: coded).
     A class's clips are forgotten by `reader` once coded; a segmented take's are kept until its
     segments are joined (`_segmented_take`)."""
     transform = get_stage("transform", settings.transform)
@@ -394,7 +390,7 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
                 unit = units[u]
                 if unit.coded is None:
                     interim[f"clip/{unit.clip:05d}"] = coding.payload
-                    _store_achieved(scan.rows[unit.clip], unit.clip, coding.achieved, coding.patches, patches)
+                    _store_achieved(scan.rows[unit.clip], unit.clip, coding.achieved, coding.patches, writer)
                     if coding.twists:
                         scan.rows[unit.clip]["twist_flips"] = coding.twists
                     reader.forget([unit.source])
@@ -408,30 +404,24 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
         take = [units[u] for u in parts]
         for name, payload in _segmented_take(scan.rows[i], i, reader.load(scan.sources[i]), take,
                                              [unit.load(reader) for unit in take], [segments[u] for u in parts],
-                                             transform, settings, patches).items():
+                                             transform, settings, writer).items():
             interim[name] = payload
         reader.forget([scan.sources[i]])
     return classes_meta, interim
 
 
 def _store_achieved(row: dict, index: int, achieved: Achieved, patches: FramePatches | None,
-                    held: dict[str, FramePatches]) -> None:
-    """A clip's achieved errors into its row, and its frame patches, if any, into `held` as `patch/NNNNN`."""
+                    writer: ArchiveWriter) -> None:
+    """A clip's achieved errors into its row, and its frame patches, if any, to `writer` as `patch/NNNNN`."""
     # p99 only informs (mean and max are the bounds, kept exact): 4 decimals save 1 KB of meta per 100 clips
     row.update(error_cm=achieved.mean, p99_error_cm=round(achieved.p99, 4), max_error_cm=achieved.max)
     if patches is not None:
         row["patched_frames"] = len(patches.frames)
-        held[f"patch/{index:05d}"] = patches
-
-
-def _serialise_patches(patches: dict[str, FramePatches]) -> dict[str, bytes]:
-    """The patch streams as stored. (Their models start fresh: priors trained on every clip's
-    patches saved 0.2-0.4 % of the archive at CMU -e 1 --max-error 3 to 5, less than they cost.)"""
-    return {name: patches[name].payload() for name in sorted(patches)}
+        writer.add(f"patch/{index:05d}", patches.payload())
 
 
 def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit], unit_clips: list[LoadedClip],
-                    coded: list, transform, settings: Settings, patches: dict[str, FramePatches]) -> dict[str, bytes]:
+                    coded: list, transform, settings: Settings, writer: ArchiveWriter) -> dict[str, bytes]:
     """Streams of a take cut into segments; fills its row's `segments`, `segment_overlap`, `class`
     (the first segment's) and its achieved error, measured on the take joined as `reader.Archive.decode` does.
 
@@ -449,7 +439,8 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
                                c[1], transform, dz, unit.coded_frames)
                    for payload, c, unit in zip(payloads, coded, units)]
         joined = join_decoded(decoded, cores, clip.motion.n_frames, OVERLAP)
-        (mean_err, _), twist_flips = clip.final_check(*joined)
+        check = clip.final_check(*joined)
+        mean_err, twist_flips = check.error[0], check.twists
         if mean_err <= target:
             break
         target *= 0.9
@@ -467,7 +458,7 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
         segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
                          "error_cm": seg_mean, "max_error_cm": seg_max})
     row.update(segments=segments, segment_overlap=OVERLAP)
-    _store_achieved(row, index, *achieved(clip, *joined, settings.max_error_cm), patches)
+    _store_achieved(row, index, *achieved(clip, check, settings.max_error_cm), writer)
     if twist_flips:
         row["twist_flips"] = twist_flips
     row["class"] = segments[0]["class"]

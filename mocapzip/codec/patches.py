@@ -17,6 +17,8 @@ matrices stream (`codec.entropy.coefficients`) of two matrices, P = the row's `p
 (P, 2) each patched frame's gap after the one before (the first's: its index) and its level,
 and (P, C) the residual ints; a row whose frame directly follows the previous row's, at the
 same level, holds its difference from that row (residuals of neighbouring frames are alike).
+Each stream's models start fresh: priors trained on every clip's patches saved 0.2-0.4 % of
+the archive at CMU -e 1 --max-error 3 to 5, less than they cost.
 """
 
 from __future__ import annotations

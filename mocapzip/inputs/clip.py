@@ -27,6 +27,22 @@ from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 
 
 @dataclass
+class FinalCheck:
+    """A decode scored on every frame as written (`LoadedClip.final_check`): what the encoder
+    keeps of it, so that measuring its errors per joint and patching it need no second decode."""
+
+    values: np.ndarray  # (F, C) the channels the decoder makes, before the writer rounds them
+    distances: np.ndarray  # (F, J) cm, each joint as written against the original
+    twists: dict  # twist flips for the clip's row
+
+    @cached_property
+    def error(self) -> tuple[float, float]:
+        """(mean, max) of `distances`, the mean summed pairwise (as `compiled.fk_distances`)."""
+        flat = self.distances.ravel()
+        return float(compiled.np_sum(flat) / flat.size), float(flat.max())
+
+
+@dataclass
 class LoadedClip:
     source: ClipSource
     model: SkeletonModel
@@ -77,23 +93,21 @@ class LoadedClip:
         `final` rounds the channels as the AMC writer will (the source's number style), as on disk.
         Solved bones take the twist nearer the original (`final_check` tells the decoder which).
         """
-        return self._score(poses, root, frames, final)[0]
+        return self._score(poses, root, frames, final)
 
-    def final_check(self, poses: np.ndarray, root: np.ndarray | None) -> tuple[tuple[float, float], dict]:
-        """`error` on every frame as on disk, and what the archive row stores so that decoding
-        `poses`/`root` gives the channels scored: the frames where a 2-dof solved bone takes its
-        other solution (`twist_flips`: `positions.TwistChoice`, `flip_ranges`; empty without
-        solved bones). One decode for both."""
-        errors, twist = self._score(poses, root, slice(None), final=True)
-        return errors, ({} if twist is None else flip_ranges(twist.flips, self.model))
+    def final_check(self, poses: np.ndarray, root: np.ndarray | None) -> FinalCheck:
+        """`poses`/`root` decoded and scored on every frame as on disk (`FinalCheck`), with what the
+        archive row stores so that decoding them gives the channels scored: the frames where a
+        2-dof solved bone takes its other solution (`twist_flips`: `positions.TwistChoice`,
+        `flip_ranges`; empty without solved bones). One decode for all of it."""
+        values, twist = self._decode(poses, root, slice(None))
+        distances = self.decode_tail.joint_distances(self.as_written(values.copy()), self._originals(slice(None))[0])
+        return FinalCheck(values, distances, {} if twist is None else flip_ranges(twist.flips, self.model))
 
     def decoded_channels(self, poses: np.ndarray, root: np.ndarray | None) -> np.ndarray:
         """The channel values (every frame, before the writer rounds them) that the decoder makes of
         `poses`/`root` with the twist flips `final_check` stores for them."""
-        original, reference = self._originals(slice(None))
-        if len(poses) != len(original):
-            raise ValueError(f"{len(poses)} poses for {len(original)} frames")
-        return self.decode_tail.channels(poses, root, reference=reference)[0]
+        return self._decode(poses, root, slice(None))[0]
 
     def as_written(self, values: np.ndarray) -> np.ndarray:
         """`values` rounded, in place, to what the AMC text the writer makes of them reads back as."""
@@ -105,18 +119,22 @@ class LoadedClip:
         return DecodeTail(self.model, self.representation, self.layout, self.encoded.params, self.axis_weight_cm)
 
     def _score(self, poses: np.ndarray, root: np.ndarray | None, frames, final: bool):
-        """((mean, max) error, the TwistChoice made) of decoded weighted `poses` for the original
+        """(mean, max) error of decoded weighted `poses` for the original `frames`."""
+        values, _ = self._decode(poses, root, frames)
+        if final:
+            self.as_written(values)
+        return self.decode_tail.error(values, self._originals(frames)[0])
+
+    def _decode(self, poses: np.ndarray, root: np.ndarray | None, frames):
+        """(channel values, the TwistChoice made) of decoded weighted `poses` for the original
         `frames`, twists chosen towards the original's (None without solved bones)."""
         original, reference = self._originals(frames)
         if len(poses) != len(original):
             raise ValueError(f"{len(poses)} poses for {len(original)} frames")
         values, flips = self.decode_tail.channels(poses, root, reference=reference)
-        if final:
-            self.as_written(values)
-        error = self.decode_tail.error(values, original)
         if not self.axes_from_positions:
-            return error, None
-        return error, TwistChoice({int(j): flips[r] for r, j in enumerate(self.decode_tail.twisted)})
+            return values, None
+        return values, TwistChoice({int(j): flips[r] for r, j in enumerate(self.decode_tail.twisted)})
 
     def _originals(self, frames) -> tuple[np.ndarray, np.ndarray | None]:
         """The original joint positions of `frames` and the twist reference (`DecodeTail.twist_reference`),

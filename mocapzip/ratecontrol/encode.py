@@ -30,6 +30,7 @@ from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
+from mocapzip.inputs.clip import FinalCheck
 from mocapzip.parallel import parallel_map
 from mocapzip.ratecontrol.max_error import Achieved, achieved, smallest_within
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
@@ -204,8 +205,7 @@ def _code_clip(index: int) -> ClassCoding:
 
     def coded_at(target: float) -> ClassCoding:
         coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, _SHARED["scales"][index])
-        decoded = reconstruct(coding.coded, basis, transform, settings.dead_zone, clip.motion.n_frames)
-        return ClassCoding(coding.coded.payload(), *achieved(clip, *decoded, settings.max_error_cm), coding.twists)
+        return ClassCoding(coding.coded.payload(), *achieved(clip, coding.check, settings.max_error_cm), coding.twists)
 
     return smallest_within(coded_at, settings.error_cm, settings.max_error_cm)
 
@@ -215,10 +215,19 @@ class ClipCoding:
     """What `code_clip` chose, and what it measured on the way."""
 
     coded: CodedClip
-    error: tuple[float, float]  # achieved (mean, max) joint error, cm, every frame as written
-    twists: dict  # twist flips for the clip's row (`LoadedClip.final_check`)
+    check: FinalCheck  # its decode, scored on every frame as written
     proxy_scale: float | None  # true error / proxy error last measured (None: not measured)
     checks: int  # end-to-end scores run (sampled or whole)
+
+    @property
+    def error(self) -> tuple[float, float]:
+        """Achieved (mean, max) joint error, cm, every frame as written."""
+        return self.check.error
+
+    @property
+    def twists(self) -> dict:
+        """Twist flips for the clip's row (`LoadedClip.final_check`)."""
+        return self.check.twists
 
     @cached_property
     def size(self) -> int:
@@ -289,8 +298,8 @@ class _ClipSearch:
     def final(self, coded: CodedClip, scale: float | None = None) -> ClipCoding:
         """`coded` scored on every frame as written."""
         self.checks += 1
-        achieved, twists = self.clip.final_check(*reconstruct(coded, self.basis, self.transform, self.dz, self.n))
-        return ClipCoding(coded, achieved, twists, scale, self.checks)
+        check = self.clip.final_check(*reconstruct(coded, self.basis, self.transform, self.dz, self.n))
+        return ClipCoding(coded, check, scale, self.checks)
 
     def tightened(self, coding: ClipCoding, band: float) -> ClipCoding:
         """Finer codings (steps 10 % smaller each time) until one meets the target on every frame or

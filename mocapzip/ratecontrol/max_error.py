@@ -50,13 +50,12 @@ class Achieved:
         return cls(float(compiled.np_sum(flat) / flat.size), float(np.percentile(flat, 99)), float(flat.max()))
 
 
-def achieved(clip, poses: np.ndarray, root: np.ndarray | None,
-             max_error_cm: float | None = None) -> tuple[Achieved, FramePatches | None]:
-    """What the decode of `poses`/`root` achieves, and with `max_error_cm` the patches (None if no
-    frame needs one) that hold every joint within it; the errors are those with the patches."""
-    values = clip.decoded_channels(poses, root)
-    original = clip.positions
-    distances = clip.decode_tail.joint_distances(clip.as_written(values.copy()), original)
+def achieved(clip, check, max_error_cm: float | None = None) -> tuple[Achieved, FramePatches | None]:
+    """What a decode of `clip` (`check`: its `inputs.clip.FinalCheck`) achieves, and with `max_error_cm`
+    the patches (None if no frame needs one) that hold every joint within it; the errors are
+    those with the patches."""
+    values, original = check.values, clip.positions
+    distances = check.distances.copy()
     if max_error_cm is None:
         return Achieved.of(distances), None
     bad = np.flatnonzero(distances.max(axis=1) > max_error_cm)
