@@ -83,3 +83,14 @@ def test_lossless_compress_reads_each_clip_once_and_keeps_none(database, tmp_pat
     _, tracker = compressed(database, tmp_path / "db.mcz", Settings(lossless=True), jobs=1)
     assert tracker.reads == COUNT
     assert tracker.most_alive <= FEW
+
+
+def test_a_clip_read_again_warns_once(tmp_path, shared_data):
+    """golf_01's last frame is cut short: the first pass says so, the clip's later readings do not."""
+    (tmp_path / "64").mkdir()
+    for name in ("64.asf", "golf_01.amc"):
+        os.symlink(shared_data / "cmu" / "64" / name, tmp_path / "64" / name)
+    with pytest.warns(UserWarning) as caught:
+        _, tracker = compressed(tmp_path, tmp_path / "db.mcz", Settings(), jobs=1, cache_bytes=0)
+    assert tracker.reads > 1  # read again for the component search and the coding
+    assert [str(w.message).count("last frame 444 is incomplete") for w in caught].count(1) == 1

@@ -8,6 +8,7 @@ kinematics, against the original clip's joint positions.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -208,9 +209,13 @@ class ClipReader:
         return self._skeletons[path]
 
     def load(self, source: ClipSource) -> LoadedClip:
-        """The kept clip, or the clip read again."""
+        """The kept clip, or the clip read again, quietly: its first reading gave its warnings."""
         clip = self._kept.get(source)
-        return clip if clip is not None else self.read(source)
+        if clip is not None:
+            return clip
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return self.read(source)
 
     def keep(self, clip: LoadedClip) -> None:
         """Hold `clip` for later `load`s if it fits in the budget."""
