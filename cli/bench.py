@@ -69,11 +69,13 @@ def _codecs(values):
 @click.option("--max-error", "max_error", metavar="CM|none", callback=max_error_value, default=None,
               help="mcz's bound on every joint of every frame, as compress takes it. Default: as compress, "
                    f"{MAX_TO_MEAN:g} x each -e; 'none': no bound.")
+@click.option("--contact-error", "contact_error", metavar="CM|none", callback=max_error_value, default=None,
+              help="mcz's bound on planted foot joints, as compress takes it (default: as compress).")
 @click.option("--per-clip", is_flag=True, help="Also print one line per clip.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no table (files are still written).")
 @reports_errors
 def bench(inputs, errors, representations, transforms, wavelet, classes, splits, codecs, groups, asf, jobs,
-          json_path, csv_path, plot_path, max_error, per_clip, quiet):
+          json_path, csv_path, plot_path, max_error, contact_error, per_clip, quiet):
     """Compress and decompress the clips under INPUTS and report size, ratio, error and speed,
     per clip, per motion class and overall, next to xz -9, zstd -19 and Hou et al. 2015.
 
@@ -102,7 +104,8 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
     options = bench_module.BenchOptions(
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
         transforms=list(transforms) or ["dct"], classes=list(classes) or ["subject"], splits=_splits(splits),
-        codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error)
+        codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error,
+        contact_error=contact_error)
     report = bench_module.run_bench(options)
     if json_path:
         _write(json_path, json.dumps(report, indent=1) + "\n")

@@ -12,6 +12,7 @@ REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
 # --max-error's default, as a multiple of -e: it removes gross errors for a few per cent more bytes
 # (docs/fidelity.md, from `python benchmarks/max_error.py`)
 MAX_TO_MEAN = 10.0
+CONTACT_ERROR_CM = None  # --contact-error's default: off (its cost and foot skate: docs/fidelity.md)
 
 
 def max_error_value(ctx, param, value):
@@ -25,6 +26,13 @@ def max_error_value(ctx, param, value):
     if not (math.isfinite(bound) and bound > 0):
         raise click.BadParameter(f"expected a number of cm above 0, or 'none'; got {value!r}", ctx, param)
     return bound
+
+
+def contact_error_cm(option) -> float | None:
+    """The bound --contact-error `option` (as `max_error_value` gave it) sets; None (not given): CONTACT_ERROR_CM."""
+    if option is None:
+        return CONTACT_ERROR_CM
+    return None if option == "none" else option
 
 
 def max_error_cm(option, error_cm: float) -> float | None:

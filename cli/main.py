@@ -16,7 +16,8 @@ from click.core import ParameterSource
 from mocapzip import __version__
 from mocapzip.cli.bench import bench
 from mocapzip.cli.classify import classify
-from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, max_error_cm, max_error_value
+from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, contact_error_cm, max_error_cm,
+                                  max_error_value)
 from mocapzip.cli.errors import reports_errors
 
 
@@ -109,7 +110,17 @@ def _errors(report: dict) -> str:
 def _summary_line(s: dict) -> str:
     return (f"{_count(s['clips'], 'clip')}, {_count(s['frames'], 'frame')}: {s['input_bytes']:,} -> "
             f"{s['output_bytes']:,} bytes ({s['input_bytes'] / s['output_bytes']:.1f}x, "
-            f"{s['bytes_per_frame']:.2f} bytes/frame), {_errors(s)}, {s['frames'] / s['seconds']:,.0f} frames/s")
+            f"{s['bytes_per_frame']:.2f} bytes/frame), {_errors(s)}, {s['frames'] / s['seconds']:,.0f} frames/s"
+            + _repairs(s.get("repaired", [])))
+
+
+def _repairs(repaired: list) -> str:
+    """The summary's note on --repair-glitches: how many ranges, and how far they are from the source."""
+    if not repaired:
+        return ""
+    clips = len({r["path"] for r in repaired})
+    return (f"; {_count(len(repaired), 'glitch range')} repaired in {_count(clips, 'clip')}, up to "
+            f"{max(r['error_cm'] for r in repaired):.1f} cm from the source (`mcz info` lists them)")
 
 
 def _not_stdout(ctx, param, value):
@@ -122,7 +133,7 @@ def _not_stdout(ctx, param, value):
 
 
 # Options that only tune the lossy codec: given with --lossless they would be silently ignored.
-LOSSY_ONLY = ("error_cm", "max_error", "representation", "transform", "wavelet", "level", "split", "segment")
+LOSSY_ONLY = ("error_cm", "max_error", "contact_error", "repair_glitches", "representation", "transform", "wavelet", "level", "split", "segment")
 
 
 def _refuse_lossy_options(ctx: click.Context) -> None:
@@ -146,9 +157,18 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
                    "measured end to end through the written AMC (the frames beyond it are patched). Default: "
                    f"{MAX_TO_MEAN:g} x -e, which removes gross errors (CMU at -e 1: 0.5 % of frames, 3 % more "
                    "bytes); tighter bounds cost more (5 cm: 34 %; docs/fidelity.md); 'none': no bound.")
+@click.option("--contact-error", "contact_error", metavar="CM|none", callback=max_error_value, default=None,
+              help="Bound on planted feet: each foot or toe joint, in the frames where the source has it on the "
+                   "ground and still, ends up within CM of the source (frame patches). Off by default: it costs "
+                   "a lot and feet slide MORE, not less (CMU -e 1, 2 cm: +58 % bytes, skate 6.8 -> 9.6 cm/s; "
+                   "docs/fidelity.md). 'none': no such bound.")
+@click.option("--repair-glitches", is_flag=True,
+              help="Let the decoder smooth over glitches in the source (`mcz inspect --check` lists them) instead of "
+                   "patching them back: the joints a glitch throws off are the only ones allowed past --max-error "
+                   "and --contact-error, and `mcz info` lists each repaired range with its error against the source.")
 @click.option("--lossless", is_flag=True,
               help="Every AMC value comes back as written; refuses the lossy-only options "
-                   "-e, --max-error, -r, -t, --wavelet, --level, --split and --segment.")
+                   "-e, --max-error, --contact-error, --repair-glitches, -r, -t, --wavelet, --level, --split and --segment.")
 @click.option("-r", "--representation", type=click.Choice(REPRESENTATIONS),
               default="aligned", show_default=True, help="What the codec compresses (thesis section 3.2.1).")
 @click.option("-t", "--transform", type=click.Choice(TRANSFORMS), default="dct", show_default=True,
@@ -178,7 +198,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
-def compress(inputs, output, error_cm, max_error, lossless, representation, transform, wavelet, level, classes, segment, split,
+def compress(inputs, output, error_cm, max_error, contact_error, repair_glitches, lossless, representation, transform, wavelet, level, classes, segment, split,
              asf, fps, jobs, cache_mb, force, skip_bad, quiet, as_json):
     """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
 
@@ -204,7 +224,9 @@ def compress(inputs, output, error_cm, max_error, lossless, representation, tran
     if transform == "dwt":
         transform_config.update(wavelet=wavelet, level=level)
     bound = None if lossless else max_error_cm(max_error, error_cm)
-    settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, representation=representation, transform=transform_config,
+    contact = None if lossless else contact_error_cm(contact_error)
+    settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, contact_error_cm=contact,
+                                repair_glitches=repair_glitches, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=fps, lossless=lossless,
                                 segment=segment)
     try:
@@ -279,6 +301,8 @@ def info(archive_path, show_clips, as_json):
         return
     s = report["settings"]
     bound = f", every joint <= {s['max_error_cm']} cm" if "max_error_cm" in s else ""
+    bound += f", planted feet <= {s['contact_error_cm']} cm" if "contact_error_cm" in s else ""
+    bound += ", glitches repaired" if s.get("repair_glitches") else ""
     mode = ("lossless" if s["lossless"] else
             f"mean error <= {s['error_cm']} cm{bound}, {s['representation']}, {s['transform']['id']}")
     click.echo(f"{report['path']}: format {report['format_version']}, written by {report['tool']}")
@@ -313,6 +337,9 @@ def info(archive_path, show_clips, as_json):
             click.echo(f"  {clip['path']}: {_count(len(clip['segments']), 'segment')}: " + ", ".join(
                 f"frames {seg['first']}..{seg['first'] + seg['frames'] - 1} {names[seg['class']]}"
                 for seg in clip["segments"]))
+        if "repaired" in clip:
+            click.echo(f"  {clip['path']}: repaired glitches (--repair-glitches), frames and error against the source: "
+                       + ", ".join(f"{first}-{last} {cm:g} cm" for first, last, cm in clip["repaired"]))
 
 
 def _clip_table(clips: list[dict], names: list[str]) -> None:

@@ -31,7 +31,8 @@ from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"
 # the newest format; two clips, 09_01 (148 frames, 62 values, 25 of them patched) and 64_01
-BASES = {"lossy": GOLDEN / "lossy_v5.mcz", "lossless": GOLDEN / "lossless_v5.mcz"}
+BASES = {"lossy": GOLDEN / "lossy_v6.mcz", "lossless": GOLDEN / "lossless_v6.mcz"}
+BASE_PATCHED = 31  # the lossy base's clip 0 (09_01): its row's patched_frames
 MEMORY_LIMIT = 1 << 30  # address space of each child: far below what any bomb here would take
 COMMANDS = (("test", "-q"), ("info", "--json"), ("decompress", "-q", "-o"))
 
@@ -113,13 +114,14 @@ def _without_root_track(meta: dict, streams: dict) -> None:
 
 
 def _patches(frames: list[int], levels: list[int], value: int) -> Callable[[], bytes]:
-    """A patch stream for clip 0 (62 values) of as many frames as the row claims (25): `frames` and
-    `levels` first, the others after them; every int `value`."""
+    """A patch stream for clip 0 (62 values) of as many frames as the row claims (BASE_PATCHED):
+    `frames` and `levels` first, the others after them; every int `value`."""
 
     def make() -> bytes:
-        first = list(frames) + list(range(max(frames) + 1, max(frames) + 26 - len(frames)))
-        every = list(levels) + [0] * (25 - len(levels))
-        return FramePatches(1.0, np.array(first), np.array(every), np.full((25, 62), value, np.int64)).payload()
+        n = BASE_PATCHED
+        first = list(frames) + list(range(max(frames) + 1, max(frames) + n + 1 - len(frames)))
+        every = list(levels) + [0] * (n - len(levels))
+        return FramePatches(1.0, np.array(first), np.array(every), np.full((n, 62), value, np.int64)).payload()
 
     return make
 
@@ -232,7 +234,7 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("patch_stream_missing", "lossy", _stream("patch/00000", None), "patch/00000: stream missing"))
     c.append(Case("patches_claimed_beyond_the_clip", "lossy", _set("clips.0.patched_frames", 149),
                   "meta: clips[0].patched_frames"))
-    c.append(Case("patches_fewer_than_stored", "lossy", _set("clips.0.patched_frames", 24), "patch/00000", decoded=True))
+    c.append(Case("patches_fewer_than_stored", "lossy", _set("clips.0.patched_frames", BASE_PATCHED - 1), "patch/00000", decoded=True))
     c.append(Case("patched_frame_past_the_end", "lossy", _stream("patch/00000", _patches([147, 150], [0, 0], 1)),
                   "patch/00000", decoded=True))
     c.append(Case("patch_level_41", "lossy", _stream("patch/00000", _patches([3, 4], [0, 41], 1)), "patch/00000",
@@ -240,6 +242,11 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("patch_moves_values_past_1e9", "lossy", _stream("patch/00000", _patches([3, 4], [0, 0], 2**61)),
                   "clip/00000", decoded=True))
     c.append(Case("patches_in_a_lossless_archive", "lossless", _set("clips.0.patched_frames", 1), "meta: clips[0]"))
+    c.append(Case("repaired_range_of_two_numbers", "lossy", _set("clips.1.repaired.0", [1, 448]),
+                  "meta: clips[1].repaired[0]"))
+    c.append(Case("repaired_error_negative", "lossy", _set("clips.1.repaired.0", [1, 448, -1]),
+                  "meta: clips[1].repaired[0]"))
+    c.append(Case("contact_error_zero", "lossy", _set("settings.contact_error_cm", 0), "meta: settings.contact_error_cm"))
     # 5. Meta that is well formed but inconsistent.
     c.append(Case("two_clips_one_path", "lossy", _set("clips.1.path", "09_01.amc"), "meta: clips[1].path"))
     c.append(Case("clip_path_is_a_skeleton", "lossy", _set("clips.1.path", "09.asf"), "meta: clips"))

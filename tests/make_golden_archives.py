@@ -5,7 +5,9 @@ file stays in the repository for good, so every future reader is tested against 
 every past writer wrote. The inputs are two short real clips from ../shared/data: 09_01 and
 09_02 up to version 3; from version 4, 09_01 and 64_01, whose left thumb needs twist flips
 (`positions.TwistChoice`), so the golden file holds some. From version 5 the lossy file bounds
-every joint at 3 cm (`--max-error`), so it holds frame patches.
+every joint at 3 cm (`--max-error`), so it holds frame patches; from version 6 it also bounds
+planted feet at 2 cm (`--contact-error`) and repairs glitches (64_01's left thumb is beyond its
+ASF limits), so its rows list repaired ranges.
 """
 
 import sys
@@ -21,7 +23,8 @@ INPUTS = [DATA / "cmu" / "09" / "09_01.amc", DATA / "cmu" / "64" / "64_01.amc"]
 if __name__ == "__main__":
     # The lossy file uses the newest clip coder even where "auto" would not (two clips are too
     # few for priors to pay), so that the coder is what the golden file pins down.
-    lossy = Settings(error_cm=1.0, max_error_cm=3.0, coefficient_coder="primed")
+    lossy = Settings(error_cm=1.0, max_error_cm=3.0, contact_error_cm=2.0, repair_glitches=True,
+                     coefficient_coder="primed")
     for name, settings in (("lossy", lossy), ("lossless", Settings(lossless=True))):
         path = GOLDEN / f"{name}_v{FORMAT_VERSION}.mcz"
         if path.exists():

@@ -18,7 +18,7 @@ from mocapzip.inputs.clip import ClipReader
 from mocapzip.inputs.discover import find_clips
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
-from mocapzip.ratecontrol.max_error import achieved
+from mocapzip.ratecontrol.max_error import Bounds, achieved
 
 
 def random_patches(rng, n_frames: int, width: int, count: int) -> FramePatches:
@@ -148,7 +148,7 @@ def test_max_error_holds_every_joint_of_every_frame_of_a_clip_with_a_glitch(glit
     values = clip.decoded_channels(poses, root)
     before = clip.decode_tail.joint_distances(clip.as_written(values.copy()), clip.positions)
     assert before.max() > 20  # the flip is far from anything the noisy poses decode to
-    errors, patches = achieved(clip, clip.final_check(poses, root), bound)
+    errors, patches = achieved(clip, clip.final_check(poses, root), Bounds(max_error_cm=bound))
     assert patches is not None
     np.testing.assert_array_equal(patches.frames, np.flatnonzero(before.max(axis=1) > bound))  # those, and only those
     assert np.isin(glitch[0] + 1, patches.frames)
@@ -170,7 +170,7 @@ def test_without_a_bound_nothing_is_patched_and_the_mean_is_the_final_checks(gli
     clip = glitch_clip
     poses = clip.poses + np.random.default_rng(3).normal(0, 0.3, clip.poses.shape)
     check = clip.final_check(poses, clip.root)
-    errors, patches = achieved(clip, check, None)
+    errors, patches = achieved(clip, check)
     assert patches is None
     mean, largest = check.error
     assert (mean, largest) == clip.error(poses, clip.root, final=True)  # the sampled scores' sum, on every frame

@@ -104,3 +104,18 @@ def test_inspect_check_lists_them_and_compress_warns_once(shared_data, tmp_path)
     warned = [line for line in compressed.output.splitlines() if "in the source" in line]
     assert warned == [f"mcz: warning: {len(lines) - 1} glitches in the source, in 1 clip (jump 4, limits 3); kept as "
                       "written, the errors are measured against them; `mcz inspect --check` lists them"]
+
+
+def test_the_mask_covers_a_spike_and_the_limb_below_it(cmu01):
+    """`glitch_mask`: a jump or limits glitch frees its bone and every joint below it over its
+    frames; held runs (frozen, zeroed) are not repaired."""
+    _, model = cmu01
+    numbers = np.arange(1, 21)
+    found = [glitches.Glitch("limits", "rfemur", 5, 7, ""), glitches.Glitch("frozen", "lhumerus", 1, 20, "")]
+    mask = glitches.glitch_mask(model, found, numbers)
+    below = {"rfemur", "rtibia", "rfoot", "rtoes"}
+    assert {model.names[j] for j in np.flatnonzero(mask.any(axis=0))} == below
+    np.testing.assert_array_equal(np.flatnonzero(mask.any(axis=1)), [4, 5, 6])  # frames 5-7
+    distances = np.zeros(mask.shape)
+    distances[5, model.index["rtoes"]] = 12.34561
+    assert glitches.repaired_ranges(mask, distances, numbers) == [[5, 7, 12.346]]

@@ -97,6 +97,9 @@ def test_max_error_none_stores_no_bound_and_no_patches(shared_data, tmp_path):
     (["--max-error", "nan"], "above 0, or 'none'"),
     (["--max-error", "2", "--lossless"], "--max-error"),
     (["--max-error", "none", "--lossless"], "--max-error"),
+    (["--contact-error", "0"], "above 0, or 'none'"),
+    (["--contact-error", "1", "--lossless"], "--contact-error"),
+    (["--repair-glitches", "--lossless"], "--repair-glitches"),
 ])
 def test_max_error_usage_errors(shared_data, tmp_path, args, message):
     result = run("compress", shared_data / "cmu" / "07" / "07_01.amc", "-o", tmp_path / "x.mcz", *args)
@@ -115,3 +118,48 @@ def test_every_joint_of_the_shared_cmu_set_within_3_cm(shared_data, tmp_path):
     assert check_within(archive, out, folder, 3.0, 1.0) > 0
     info = run("info", archive)
     assert "every joint <= 3.0 cm" in info.output
+
+
+def test_repair_glitches_lets_only_the_glitch_past_the_bound(shared_data, tmp_path):
+    """--repair-glitches: 01_06's rfemur flip is smoothed over, not patched back. The joints it
+    throws off are the only ones past the bound, and the row lists the range with its error."""
+    folder = shared_data / "cmu" / "01"
+    archive, out = tmp_path / "repaired.mcz", tmp_path / "out"
+    result = run("compress", folder / "01_06.amc", "-o", archive, "-e", "1", "--max-error", "3", "--repair-glitches")
+    assert result.exit_code == 0 and "repaired in 1 clip" in result.stderr
+    assert run("decompress", archive, "-o", out, "-q").exit_code == 0
+    with Archive(archive) as opened:
+        assert opened.meta["settings"]["repair_glitches"] is True
+        row = opened.clips[0]
+    errors = joint_errors(folder / "01_06.amc", out / "01_06.amc", next(folder.glob("*.asf")))
+    source = read_amc(folder / "01_06.amc")
+    inside = np.zeros(len(errors), bool)
+    for first, last, cm in row["repaired"]:
+        frames = (source.frame_numbers >= first) & (source.frame_numbers <= last)
+        inside |= frames
+        assert cm == pytest.approx(errors[frames].max(), abs=1.1e-3)  # rounded up to 0.001 cm
+    assert errors[~inside].max() <= 3.0
+    flip = [r for r in row["repaired"] if r[0] <= 4756 <= r[1]]
+    assert flip and flip[0][2] > 20  # the flip is not brought back: the decode stays far from it
+    assert errors.max() == pytest.approx(row["max_error_cm"], abs=1e-6)  # the row's max counts the repaired frames
+    assert "4755-4761" in run("info", archive).output
+
+
+def test_contact_error_holds_planted_feet(shared_data, tmp_path):
+    """--contact-error 1: every foot joint the source plants (`motion.contacts`) within 1 cm."""
+    from mocapzip.motion.contacts import contacts
+
+    folder = shared_data / "cmu" / "07"
+    archive, out = tmp_path / "feet.mcz", tmp_path / "out"
+    assert run("compress", folder / "07_01.amc", "-o", archive, "-q", "--contact-error", "1").exit_code == 0
+    assert run("decompress", archive, "-o", out, "-q").exit_code == 0
+    model = SkeletonModel.from_asf(read_asf(folder / "07.asf"))
+    source = read_amc(folder / "07_01.amc")
+    planted = contacts(model, forward(model, source.values, source).positions, 120.0)
+    assert planted.sum() > 100  # a walk: its feet are down much of the time
+    errors = joint_errors(folder / "07_01.amc", out / "07_01.amc", folder / "07.asf")
+    assert errors[planted].max() <= 1.0
+    assert errors.max() > 1.0 and errors.max() <= 10.0  # the rest: the default bound
+    with Archive(archive) as opened:
+        assert opened.meta["settings"]["contact_error_cm"] == 1.0 and opened.clips[0]["patched_frames"] > 0
+    assert "planted feet <= 1.0 cm" in run("info", archive).output

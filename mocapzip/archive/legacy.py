@@ -1,7 +1,7 @@
 """Old archive formats, decode only, in one place (as zstd keeps `lib/legacy`).
 
 The reader (`mocapzip.archive.reader`) dispatches on the container's `format_version`; what
-the newest format (4) does is written by the codec modules, and only what an older one did
+formats 4 to 6 do is written by the codec modules, and only what an older one did
 differently lives here. Nothing here encodes: no path can write an old layout.
 
 | format_version | differs from format 4 in |

@@ -47,6 +47,8 @@ _STYLE = _record({
     "encoding": {"enum": ["utf-8", "latin-1"]},
 })
 
+_FRAME_NUMBER = {"type": "integer", "minimum": 0, "maximum": MAX_FRAME_NUMBER}
+
 _SEGMENT = _record({
     "first": _COUNT, "frames": {"type": "integer", "minimum": 1}, "class": _COUNT, "stream": _STRING,
     "error_cm": _ERROR, "max_error_cm": _ERROR,
@@ -75,6 +77,10 @@ _CLIP = _record(
         "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
         "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
         "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
+        # --repair-glitches (format 6 on): [first, last AMC frame numbers, largest joint error in cm] per run
+        "repaired": {"type": "array", "maxItems": MAX_FRAMES_PER_CLIP, "items": {
+            "type": "array", "minItems": 3, "maxItems": 3,
+            "items": [_FRAME_NUMBER, _FRAME_NUMBER, _ERROR]}},
     },
 )
 
@@ -98,6 +104,8 @@ _SETTINGS = _record(
     {
         "segment": {"type": "boolean"},
         "max_error_cm": _POSITIVE,
+        "contact_error_cm": _POSITIVE,  # format 6 on
+        "repair_glitches": {"type": "boolean"},  # format 6 on
         "coefficient_coder": {"enum": [*stage_ids("coefficient coder"), "auto"]},
         "axes_from_positions": {"type": "boolean"},
     },

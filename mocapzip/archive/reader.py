@@ -368,7 +368,8 @@ def info(archive_path) -> dict:
 def _info_row(row: dict) -> dict:
     """A clip as `info` lists it; a segmented take (--segment) with its segments' frames, classes and errors."""
     out = {k: row[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")}
-    for optional in ("p99_error_cm", "patched_frames", "dropped_frames"):  # p99: format 5 on; patches: --max-error
+    # p99: format 5 on; patches: --max-error or --contact-error; repaired: --repair-glitches (format 6 on)
+    for optional in ("p99_error_cm", "patched_frames", "dropped_frames", "repaired"):
         if optional in row:
             out[optional] = row[optional]
     if "segments" in row:

@@ -18,6 +18,8 @@ class Settings:
 
     error_cm: float = DEFAULT_ERROR_CM
     max_error_cm: float | None = None  # bound on every joint of every frame (frame patches); None: no bound
+    contact_error_cm: float | None = None  # bound on planted foot joints (motion.contacts; frame patches); None: none
+    repair_glitches: bool = False  # joints a source glitch throws off are left to the decoder, not held to the bounds
     representation: str = "aligned"
     transform: dict = field(default_factory=lambda: {"id": "dct"})
     classes: str = "subject"
@@ -68,9 +70,11 @@ def checked(settings: Settings) -> Settings:
     if settings.coefficient_coder not in written_coders():
         raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
                             f"{FORMAT_VERSION}; choose one of {', '.join(written_coders())}")
-    if settings.max_error_cm is not None and not settings.max_error_cm > 0:
-        raise SettingsError(f"max_error_cm must be above 0, got {settings.max_error_cm}")
-    numbers = [settings.error_cm, *([] if settings.max_error_cm is None else [settings.max_error_cm]), settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
+    bounds = [b for b in (settings.max_error_cm, settings.contact_error_cm) if b is not None]
+    for name in ("max_error_cm", "contact_error_cm"):
+        if getattr(settings, name) is not None and not getattr(settings, name) > 0:
+            raise SettingsError(f"{name} must be above 0, got {getattr(settings, name)}")
+    numbers = [settings.error_cm, *bounds, settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
                settings.fps, *(settings.split or [])]
     if not all(math.isfinite(x) for x in numbers):
         raise SettingsError("settings must be finite numbers (no inf or nan)")

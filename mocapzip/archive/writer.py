@@ -37,12 +37,11 @@ from mocapzip.formats.mcz import ArchiveWriter
 from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
-from mocapzip.inputs.glitches import find_glitches
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
 from mocapzip.parallel import imap, parallel_map
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
-from mocapzip.ratecontrol.max_error import Achieved, achieved
+from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved
 from mocapzip.representations.base import Encoded
 from mocapzip.stages import get_stage
 
@@ -78,7 +77,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
                             + [p for p in (asf, settings.classes) if p is not None and os.path.isfile(p)])
     keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
     reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
-                        None if keeps_all else cache_bytes, settings.axes_from_positions)
+                        None if keeps_all else cache_bytes, settings.axes_from_positions, settings.fps)
     with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
         scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all, jobs=jobs)
         if not scan.sources:
@@ -104,10 +103,12 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
             settings = replace(settings, coefficient_coder=coder)
 
         stored_settings = asdict(settings)
-        if not settings.segment:
-            del stored_settings["segment"]  # absent means off: archives without segments are written as before
-        if settings.max_error_cm is None:
-            del stored_settings["max_error_cm"]  # absent means no bound on a single joint
+        for flag in ("segment", "repair_glitches"):
+            if not stored_settings[flag]:
+                del stored_settings[flag]  # absent means off
+        for bound in ("max_error_cm", "contact_error_cm"):
+            if stored_settings[bound] is None:
+                del stored_settings[bound]  # absent means no such bound
         meta = {
             "tool": f"mocapzip {__version__}",
             "settings": stored_settings,
@@ -145,6 +146,8 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "largest_max_error_cm": max(r["max_error_cm"] for r in rows),
         "seconds": time.perf_counter() - started,
         "skipped": skipped or [],
+        "repaired": [{"path": r["path"], "first": first, "last": last, "error_cm": cm}
+                     for r in rows for first, last, cm in r.get("repaired", [])],
     }
 
 
@@ -190,7 +193,7 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
     else:  # lossless clips share no basis: there is nothing to group
         name_class = (lambda source: "all") if settings.lossless else None
     scan = _FirstPass()
-    _SHARED.update(reader=reader, fps=settings.fps)  # the workers fork from here
+    _SHARED.update(reader=reader)  # the workers fork from here
     try:
         with closing(imap(_read_clip, sources, jobs, CLIPS_AHEAD * jobs)) as read:
             for source in progress(sources, desc="read", unit="clip"):
@@ -255,15 +258,13 @@ def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None, Counter] |
     skeleton's warnings are the caller's to give."""
     reader = _SHARED["reader"]
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings():  # read once, quietly: the caller gives the skeleton's warnings
             warnings.simplefilter("ignore")
-            skeleton, model = reader.skeleton(source.asf)
+            reader.skeleton(source.asf)
         clip = reader.read(source)
     except (MocapFormatError, OSError) as exc:
         return exc
-    glitches = Counter()
-    if clip.positions is not None:
-        glitches.update(g.kind for g in find_glitches(skeleton, model, clip.motion, clip.positions, _SHARED["fps"]))
+    glitches = Counter(g.kind for g in clip.glitches or [])
     clip.model = None
     return clip, encode_channels(clip.motion.values) if clip.encoded is None else None, glitches
 
@@ -415,6 +416,8 @@ def _store_achieved(row: dict, index: int, achieved: Achieved, patches: FramePat
     """A clip's achieved errors into its row, and its frame patches, if any, to `writer` as `patch/NNNNN`."""
     # p99 only informs (mean and max are the bounds, kept exact): 4 decimals save 1 KB of meta per 100 clips
     row.update(error_cm=achieved.mean, p99_error_cm=round(achieved.p99, 4), max_error_cm=achieved.max)
+    if achieved.repaired:
+        row["repaired"] = [list(r) for r in achieved.repaired]
     if patches is not None:
         row["patched_frames"] = len(patches.frames)
         writer.add(f"patch/{index:05d}", patches.payload())
@@ -458,7 +461,7 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
         segments.append({"first": unit.first, "frames": unit.frames, "class": c[0], "stream": name,
                          "error_cm": seg_mean, "max_error_cm": seg_max})
     row.update(segments=segments, segment_overlap=OVERLAP)
-    _store_achieved(row, index, *achieved(clip, check, settings.max_error_cm), writer)
+    _store_achieved(row, index, *achieved(clip, check, Bounds.of(settings)), writer)
     if twist_flips:
         row["twist_flips"] = twist_flips
     row["class"] = segments[0]["class"]

@@ -63,7 +63,7 @@ import numpy as np
 
 from mocapzip import __version__
 from mocapzip.classes.by_name import read_class_table
-from mocapzip.cli.choices import max_error_cm
+from mocapzip.cli.choices import contact_error_cm, max_error_cm
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import ClipSource, find_clips
 from mocapzip.progress import progress
@@ -96,6 +96,7 @@ class BenchOptions:
     jobs: int = 1
     wavelet: str = "db4"
     max_error: float | str | None = None  # --max-error: a bound in cm, "none", or None for compress's default (10 x -e)
+    contact_error: float | str | None = None  # --contact-error: a bound in cm, "none", or None for compress's default
     hou_grid: dict | None = None  # override of hou.GRID_L/K/Q (tests, quick runs)
     quiet: bool = False
     command: str | None = None  # how the run was invoked (default: the equivalent `mcz bench` command)
@@ -426,7 +427,8 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
         classes = os.fspath(table)
     settings = {"error_cm": task["error_cm"], "representation": task["representation"],
                 "transform": _transform_config(task["transform"], options.wavelet), "classes": classes,
-                "split": task["split"], "max_error_cm": max_error_cm(options.max_error, task["error_cm"])}
+                "split": task["split"], "max_error_cm": max_error_cm(options.max_error, task["error_cm"]),
+                "contact_error_cm": contact_error_cm(options.contact_error)}
     path = work / "bench.mcz"
     encoded = _run_child({"op": "compress", "inputs": [os.fspath(p) for p in options.inputs], "output": os.fspath(path),
                           "settings": settings, "asf": options.asf, "jobs": options.jobs}, options.quiet)
@@ -505,6 +507,9 @@ def _mcz_label(task: dict, options: BenchOptions | None = None) -> str:
     bound = None if options is None else max_error_cm(options.max_error, task["error_cm"])
     if bound is not None:
         parts.insert(1, f"every joint <= {bound:g} cm")
+    contact = None if options is None else contact_error_cm(options.contact_error)
+    if contact is not None:
+        parts.insert(2 if bound is not None else 1, f"planted feet <= {contact:g} cm")
     if task["split"]:
         parts.append("split " + ",".join(f"{s:g}" for s in task["split"]))
     return ", ".join(parts)
@@ -846,6 +851,8 @@ def command_line(options: BenchOptions) -> str:
         args += ["--codec", ",".join(options.codecs)]
     if options.max_error is not None:
         args += ["--max-error", f"{options.max_error:g}" if options.max_error != "none" else "none"]
+    if options.contact_error is not None:
+        args += ["--contact-error", f"{options.contact_error:g}" if options.contact_error != "none" else "none"]
     if "dwt" in options.transforms and options.wavelet != "db4":
         args += ["--wavelet", options.wavelet]
     for flag, value in (("--groups", options.groups), ("--asf", options.asf)):

@@ -18,6 +18,7 @@ import numpy as np
 from mocapzip.formats.amc import Motion, read_amc
 from mocapzip.formats.asf import read_asf
 from mocapzip.inputs.discover import ClipSource
+from mocapzip.inputs.glitches import Glitch, find_glitches
 from mocapzip.motion import compiled
 from mocapzip.progress import progress
 from mocapzip.representations import get_representation
@@ -53,6 +54,7 @@ class LoadedClip:
     positions: np.ndarray | None  # (F, J, 3) cm, original joint positions (lossy mode)
     axis_weight_cm: float = 1.0
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
+    glitches: list[Glitch] | None = None  # the source's (`inputs.glitches`; lossy mode)
     _scored_frames: tuple = field(default=(None, None), repr=False, compare=False)  # see _originals
 
     @property
@@ -174,11 +176,12 @@ class ClipReader:
     """
 
     def __init__(self, representation_name: str | None, axis_weight_cm: float = 1.0,
-                 budget_bytes: int | None = None, axes_from_positions: bool = False):
+                 budget_bytes: int | None = None, axes_from_positions: bool = False, fps: float = 120.0):
         self.representation_name, self.axis_weight_cm = representation_name, axis_weight_cm
         self.axes_from_positions = axes_from_positions
-        self.budget_bytes = budget_bytes
+        self.budget_bytes, self.fps = budget_bytes, fps
         self._skeletons: dict = {}  # ASF path -> (skeleton, model): small, read once
+        self._glitches: dict[ClipSource, list[Glitch]] = {}  # found once per clip, however often it is read
         self._kept: dict[ClipSource, LoadedClip] = {}
         self._kept_bytes = 0
 
@@ -198,6 +201,9 @@ class ClipReader:
                           self.axes_from_positions)
         if encoded is not None:  # the joints the error is measured against, by the check's own kinematics
             clip.positions = clip.decode_tail.positions(motion.values)
+            clip.glitches = self._glitches.get(source)
+            if clip.glitches is None:
+                clip.glitches = find_glitches(skeleton, model, motion, clip.positions, self.fps)
         return clip
 
     def skeleton(self, path) -> tuple:
@@ -218,7 +224,9 @@ class ClipReader:
             return self.read(source)
 
     def keep(self, clip: LoadedClip) -> None:
-        """Hold `clip` for later `load`s if it fits in the budget."""
+        """Hold `clip` for later `load`s if it fits in the budget; its glitches in any case."""
+        if clip.glitches is not None:
+            self._glitches[clip.source] = clip.glitches
         if self.budget_bytes is None or self._kept_bytes + clip.nbytes <= self.budget_bytes:
             self._kept[clip.source] = clip
             self._kept_bytes += clip.nbytes

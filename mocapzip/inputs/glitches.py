@@ -1,8 +1,8 @@
 """Glitches in the source: motion that is broken as captured, reported and never silently fixed.
 
 The codec's bounds hold against the source as written (`--max-error`), glitch included; this
-module only finds and names them, for `mcz inspect --check` and the summary `compress`
-prints. Four kinds, per bone and run of frames (thresholds from the shared CMU set, and why:
+module finds and names them, for `mcz inspect --check` and the summary `compress` prints,
+and with `--repair-glitches` says which joints are let past the bounds (`glitch_mask`). Four kinds, per bone and run of frames (thresholds from the shared CMU set, and why:
 docs/fidelity.md, "Glitches in the source"):
 
 - `jump`: a joint moves faster than JUMP_CM_PER_S between two frames, its parent not (the
@@ -17,6 +17,7 @@ docs/fidelity.md, "Glitches in the source"):
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -123,3 +124,28 @@ def beyond_limits(skeleton: Skeleton, model: SkeletonModel, motion: Motion,
                 found.append(Glitch("limits", bone.name, int(numbers[a]), int(numbers[b - 1]),
                                     f"{dof} {v[worst]:g} outside its limits [{low:g}, {high:g}]"))
     return found
+
+
+REPAIRABLE = ("jump", "limits")  # spikes the decoder's smooth curves pass over; a frozen or zeroed run
+# is a held pose, which the codec follows: there is nothing to smooth it towards
+
+
+def glitch_mask(model: SkeletonModel, glitches: list[Glitch], frame_numbers: np.ndarray) -> np.ndarray:
+    """(frames, joints) bool: the joints each REPAIRABLE glitch throws off, its bone's and every joint
+    below it, over its frames; what `--repair-glitches` leaves to the decoder instead of patching."""
+    mask = np.zeros((len(frame_numbers), len(model.names)), bool)
+    for glitch in (g for g in glitches if g.kind in REPAIRABLE):
+        frames = (frame_numbers >= glitch.first) & (frame_numbers <= glitch.last)
+        mask[np.ix_(frames, [model.index[glitch.bone]])] = True
+    for j in range(1, len(model.parents)):  # parents come before children
+        mask[:, j] |= mask[:, model.parents[j]]
+    return mask
+
+
+def repaired_ranges(mask: np.ndarray, distances: np.ndarray, frame_numbers: np.ndarray) -> list[list]:
+    """[first, last, cm] per run of frames with a repaired joint (`glitch_mask`): its AMC frame
+    numbers and the largest distance of any joint in it from the source, rounded up to 0.001 cm."""
+    out = []
+    for a, b in _runs(mask.any(axis=1)):
+        out.append([int(frame_numbers[a]), int(frame_numbers[b - 1]), math.ceil(float(distances[a:b].max()) * 1000) / 1000])
+    return out

@@ -32,7 +32,7 @@ from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.clip import FinalCheck
 from mocapzip.parallel import parallel_map
-from mocapzip.ratecontrol.max_error import Achieved, achieved, smallest_within
+from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved, smallest_within
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
 from mocapzip.representations.weighted import joint_position_columns
@@ -199,15 +199,17 @@ class ClassCoding:
 
 
 def _code_clip(index: int) -> ClassCoding:
-    """The clip coded with the class basis, and what it achieves; with settings.max_error_cm, at the
-    mean aim that needs the fewest bytes with its patches (`max_error.smallest_within`)."""
+    """The clip coded with the class basis, and what it achieves; with a bound on single joints
+    (settings.max_error_cm, contact_error_cm), at the mean aim that needs the fewest bytes with
+    its patches (`max_error.smallest_within`)."""
     settings, clip, transform, basis = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
 
     def coded_at(target: float) -> ClassCoding:
         coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, _SHARED["scales"][index])
-        return ClassCoding(coding.coded.payload(), *achieved(clip, coding.check, settings.max_error_cm), coding.twists)
+        return ClassCoding(coding.coded.payload(), *achieved(clip, coding.check, bounds), coding.twists)
 
-    return smallest_within(coded_at, settings.error_cm, settings.max_error_cm)
+    bounds = Bounds.of(settings)
+    return smallest_within(coded_at, settings.error_cm, bounds.on_joints)
 
 
 @dataclass

@@ -22,7 +22,9 @@ import numpy as np
 
 from mocapzip.codec.patches import MAX_LEVEL, FramePatches, channel_steps, frame_steps
 from mocapzip.codec.quantise import UniformQuantiser
+from mocapzip.inputs.glitches import glitch_mask, repaired_ranges
 from mocapzip.motion import compiled
+from mocapzip.motion.contacts import contacts
 
 
 PATCH_DEAD_ZONE = 0.45  # small residuals left out: a frame then passes at a finer level with fewer values
@@ -40,57 +42,101 @@ class Achieved:
     mean: float
     p99: float
     max: float
+    repaired: tuple = ()  # with --repair-glitches: [first, last, cm] per repaired run (`glitches.repaired_ranges`)
 
     @classmethod
-    def of(cls, distances: np.ndarray) -> "Achieved":
+    def of(cls, distances: np.ndarray, repaired: tuple = ()) -> "Achieved":
         """From (frames, joints) distances; the mean summed as the encoder's checks sum it (pairwise)."""
         flat = np.ascontiguousarray(distances, dtype=np.float64).ravel()
         if not flat.size:
-            return cls(0.0, 0.0, 0.0)
-        return cls(float(compiled.np_sum(flat) / flat.size), float(np.percentile(flat, 99)), float(flat.max()))
+            return cls(0.0, 0.0, 0.0, repaired)
+        return cls(float(compiled.np_sum(flat) / flat.size), float(np.percentile(flat, 99)), float(flat.max()), repaired)
 
 
-def achieved(clip, check, max_error_cm: float | None = None) -> tuple[Achieved, FramePatches | None]:
-    """What a decode of `clip` (`check`: its `inputs.clip.FinalCheck`) achieves, and with `max_error_cm`
-    the patches (None if no frame needs one) that hold every joint within it; the errors are
-    those with the patches."""
+@dataclass(frozen=True)
+class Bounds:
+    """What holds single joints, beside the mean: the settings `achieved` enforces."""
+
+    max_error_cm: float | None = None  # every joint of every frame
+    contact_error_cm: float | None = None  # planted foot joints (`motion.contacts`)
+    repair_glitches: bool = False  # the joints a source glitch throws off are not held (`glitches.glitch_mask`)
+    fps: float = 120.0  # the clips' frame rate, for the contacts
+
+    @classmethod
+    def of(cls, settings) -> "Bounds":
+        return cls(settings.max_error_cm, settings.contact_error_cm, settings.repair_glitches, settings.fps)
+
+    @property
+    def on_joints(self) -> bool:
+        """Whether any joint has a bound of its own (then patches may be needed)."""
+        return self.max_error_cm is not None or self.contact_error_cm is not None
+
+
+def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePatches | None]:
+    """What a decode of `clip` (`check`: its `inputs.clip.FinalCheck`) achieves, and the patches
+    (None if no frame needs one) that hold its joints within `bounds` (`joint_limits`); the
+    errors are those with the patches."""
     values, original = check.values, clip.positions
     distances = check.distances.copy()
-    if max_error_cm is None:
-        return Achieved.of(distances), None
-    bad = np.flatnonzero(distances.max(axis=1) > max_error_cm)
+    repaired = None
+    if bounds.repair_glitches:
+        repaired = glitch_mask(clip.model, clip.glitches, clip.motion.frame_numbers)
+    limits = joint_limits(clip, bounds, repaired)
+    bad = np.flatnonzero(np.any(distances > limits, axis=1)) if limits is not None else np.zeros(0, np.int64)
     if not bad.size:
-        return Achieved.of(distances), None
+        return _with_repairs(distances, repaired, clip), None
     steps = channel_steps(clip.model, clip.layout)
-    step_cm = float(np.float32(max_error_cm))
+    step_cm = float(np.float32(bounds.max_error_cm if bounds.max_error_cm is not None else bounds.contact_error_cm))
     residual = clip.motion.values[bad] - values[bad]
     chains = _chain_channels(clip)
-    before = distances[bad]
-    # the channels a frame corrects: those of the joints beyond the bound, and their ancestors'
-    corrected = (before > max_error_cm).astype(np.int64) @ chains > 0
-    levels = np.zeros(len(bad), np.int64)
+    before, limit = distances[bad], limits[bad]
+    # the channels a frame corrects: those of the joints beyond their bound, and their ancestors'
+    corrected = (before > limit).astype(np.int64) @ chains > 0
+    # a frame starts at the level whose step is its tightest broken bound
+    tightest = np.where(before > limit, limit, np.inf).min(axis=1)
+    levels = np.maximum(0, np.ceil(np.log2(step_cm / tightest) - 1e-6)).astype(np.int64)
     ints = np.zeros(residual.shape, np.int64)
     pending = np.arange(len(bad))
     while pending.size:
         if levels[pending].max() > MAX_LEVEL:
             frame = int(bad[pending[np.argmax(levels[pending])]])
-            raise ValueError(f"frame {frame} stays beyond {max_error_cm:g} cm at every patch level")
+            raise ValueError(f"frame {frame} stays beyond its bound at every patch level")
         row_steps = np.array([frame_steps(steps, step_cm, int(level)) for level in levels[pending]])
         kept = np.where(corrected[pending], residual[pending], 0.0)
         ints[pending] = UniformQuantiser(1.0, PATCH_DEAD_ZONE).quantise(kept / row_steps)
         patched = values[bad[pending]] + ints[pending] * row_steps  # as FramePatches.apply adds them
         after = clip.decode_tail.joint_distances(clip.as_written(patched), original[bad[pending]])
-        passed = (after.max(axis=1) <= max_error_cm) & (after.sum(axis=1) <= before[pending].sum(axis=1))
+        passed = np.all(after <= limit[pending], axis=1) & (after.sum(axis=1) <= before[pending].sum(axis=1))
         distances[bad[pending[passed]]] = after[passed]
         failed, after = pending[~passed], after[~passed]
-        # a joint beyond the bound, or worse than before, adds its chain; with nothing to add, a finer level
-        worse = (after > max_error_cm) | (after > before[failed])
+        # a joint beyond its bound, or worse than before, adds its chain; with nothing to add, a finer level
+        worse = (after > limit[failed]) | (after > before[failed])
         wider = corrected[failed] | (worse.astype(np.int64) @ chains > 0)
         finer = np.all(wider == corrected[failed], axis=1)
         corrected[failed] = wider
         levels[failed[finer]] += 1
         pending = failed
-    return Achieved.of(distances), FramePatches(step_cm, bad, levels, ints)
+    return _with_repairs(distances, repaired, clip), FramePatches(step_cm, bad, levels, ints)
+
+
+def joint_limits(clip, bounds: Bounds, repaired: np.ndarray | None = None) -> np.ndarray | None:
+    """(frames, joints) the bound on each joint's error, cm: max_error_cm (inf without), the tighter
+    contact_error_cm on the source's planted foot joints, and none on the `repaired` joints;
+    None without a bound on single joints."""
+    if not bounds.on_joints:
+        return None
+    limits = np.full(clip.positions.shape[:2], np.inf if bounds.max_error_cm is None else bounds.max_error_cm)
+    if bounds.contact_error_cm is not None:
+        planted = contacts(clip.model, clip.positions, bounds.fps)
+        limits[planted] = np.minimum(limits[planted], bounds.contact_error_cm)
+    if repaired is not None:
+        limits[repaired] = np.inf
+    return limits
+
+
+def _with_repairs(distances: np.ndarray, repaired: np.ndarray | None, clip) -> Achieved:
+    ranges = () if repaired is None else tuple(repaired_ranges(repaired, distances, clip.motion.frame_numbers))
+    return Achieved.of(distances, ranges)
 
 
 def _chain_channels(clip) -> np.ndarray:
@@ -105,12 +151,12 @@ def _chain_channels(clip) -> np.ndarray:
     return chains
 
 
-def smallest_within(coded_at: Callable, target: float, max_error_cm: float | None):
+def smallest_within(coded_at: Callable, target: float, bounded: bool):
     """The smallest of `coded_at(aim)` (a coding with `.size` and `.patch_bytes`) over mean aims target,
     LOWERED x target, ...: lowered while patches take more than PATCH_SHARE of a coding's bytes and
     the codings shrink."""
     best = coded_at(target)
-    for _ in range(MAX_LOWERINGS if max_error_cm is not None else 0):
+    for _ in range(MAX_LOWERINGS if bounded else 0):
         if best.patch_bytes <= PATCH_SHARE * best.size:
             break
         target *= LOWERED

@@ -15,7 +15,7 @@ import numpy as np
 import zstandard
 
 MAGIC = "MCZ mocapzip archive"
-NEWEST_FORMAT = 5
+NEWEST_FORMAT = 6
 MAX_ZSTD_OUTPUT = 1 << 28  # streams spec, "zstd frames": 2^28 bytes at most
 
 

@@ -5,7 +5,7 @@ sections (header, residuals, exceptions, negative zeros, links, digits) from whi
 clip's AMC values are rebuilt as float64, bit for bit. Section names below are those of
 that chapter ("Building blocks", "Stream", "Residuals, layout 2", "Links", "Coarse
 values", "Exceptions", "Negative zeros", "Digit sections", "Values", "Limits a reader
-checks"). The layout is the same in every container format_version (1 to 5).
+checks"). The layout is the same in every container format_version (1 to 6).
 
 A reference decoder for trusted test files: it checks the CRCs, the exact lengths and the
 limits the spec lists, and raises ValueError when one fails.
@@ -496,7 +496,7 @@ def lossless_channels(data: bytes, row: dict, format_version: int) -> np.ndarray
     """Decode a lossless `clip/NNNNN` stream to the clip's float64 (frames, channels) values.
 
     `format_version` is accepted for the common interface; the stream layout is the same
-    in formats 1 to 5 and carries its own layout number (1 or 2).
+    in formats 1 to 6 and carries its own layout number (1 or 2).
     """
     sections = blob_list(data, "clip")
     if not sections:
