@@ -147,7 +147,8 @@ def render(command, git, elapsed, rd, sm, sp, tt, head, rules, log_lines, data) 
                f"**{fastest_decompress['frames_per_second']:,.0f} frames/s** ({fastest_decompress['name']}; "
                f"{fastest_decompress['vs_xz']:.2f} x xz -d). The first run after installing compiles mcz's kernels: "
                f"{rows['mcz compress -j 1, cold start']['seconds'] - rows['mcz compress -j 1']['seconds']:.0f} s more.")
-    out += ["", "How to read these: mcz shares one PCA basis per subject across clips and the archive's metadata "
+    out += ["", "How to read these: mcz shares one PCA basis per subject across clips (subjects under 4,000 frames "
+            "share one between them: `--classes pooled`, docs/fixed_costs.md) and the archive's metadata "
             "across all clips. Hou et al. section IV codes each clip alone with its own basis (the paper's "
             "per-sequence results), so against it mcz's per-clip numbers include the advantage of sharing; the "
             "'basis per subject' variant (section V with K = 1 per subject) shares as mcz does, and is the "

@@ -50,8 +50,8 @@ def _codecs(values):
               help="Temporal transform (repeat for a sweep; default dct).")
 @click.option("--wavelet", default="db4", show_default=True, help="Wavelet for --transform dwt.")
 @click.option("-c", "--classes", "classes", multiple=True, metavar="MODE",
-              help="PCA classes: single, subject, clip (one per clip), none (no PCA: bench-only emulation) "
-                   "or FILE.csv (repeat for a sweep; default subject).")
+              help="PCA classes: pooled (as compress), single, subject, clip (one per clip), none (no PCA: "
+                   "bench-only emulation) or FILE.csv (repeat for a sweep; default pooled).")
 @click.option("--split", "splits", multiple=True, metavar="R,P,T",
               help="Forced error split between root, PCA and temporal coding (repeat for a sweep).")
 @click.option("--codec", "codecs", multiple=True, metavar="NAME[,NAME]",
@@ -103,7 +103,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
     progress.QUIET = quiet
     options = bench_module.BenchOptions(
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
-        transforms=list(transforms) or ["dct"], classes=list(classes) or ["subject"], splits=_splits(splits),
+        transforms=list(transforms) or ["dct"], classes=list(classes) or ["pooled"], splits=_splits(splits),
         codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error,
         contact_error=contact_error)
     report = bench_module.run_bench(options)

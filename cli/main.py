@@ -175,9 +175,11 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
               help="Temporal transform of the PCA curves.")
 @click.option("--wavelet", default="db4", show_default=True, help="PyWavelets wavelet name for --transform dwt.")
 @click.option("--level", type=click.IntRange(min=1, max=32), default=None, help="DWT levels (default: as many as the clip allows).")
-@click.option("-c", "--classes", default="subject", show_default=True,
-              help="Clips sharing one PCA basis: single, subject (one per skeleton), FILE.csv (clip path, class), "
-                   "or auto[:K]: K classes found from the poses without labels (K chosen by archive size if omitted).")
+@click.option("-c", "--classes", default="pooled", show_default=True,
+              help="Clips sharing one PCA basis: pooled (one per skeleton, but skeletons with under 4,000 frames "
+                   "share one: a basis costs a few KB), subject (one per skeleton), single, FILE.csv (clip path, "
+                   "class), or auto[:K]: K classes found from the poses without labels (K chosen by archive size if "
+                   "omitted).")
 @click.option("--segment", is_flag=True,
               help="Cut long takes at PPCA change points and code each segment on its own (within --error); "
                    "with -c auto the segments of one take can fall in different classes.")

@@ -71,6 +71,19 @@ def test_mcz_sizes_add_up_to_the_archive(report, clips):
     assert run["overall"]["ratio_amc"] == pytest.approx(sum(map(os.path.getsize, clips)) / run["archive_bytes"])
 
 
+def test_mcz_fixed_costs_are_the_archive_less_its_clips(report):
+    """The fixed costs (skeletons, bases, meta, priors, container) and the clip streams make the whole file."""
+    run = run_of(report, "mcz")
+    fixed = run["fixed_bytes"]
+    assert set(fixed) == {"skeletons", "bases", "meta", "priors", "container"}
+    assert fixed["skeletons"] > 0 and fixed["meta"] > 0 and fixed["container"] > 0
+    assert fixed["bases"] == run["class_bytes"]
+    patches = run["shared_bytes"] - sum(fixed.values()) + fixed["bases"]  # shared: all but clips and bases
+    assert patches >= 0
+    assert sum(fixed.values()) + sum(c["payload_bytes"] for c in run["clips"]) + patches == run["archive_bytes"]
+    assert "fixed costs: skeletons" in report["_stdout"]
+
+
 def test_mcz_keeps_its_error_promise_end_to_end(report):
     run = run_of(report, "mcz")
     assert "read back" in run["error_measured_on"]

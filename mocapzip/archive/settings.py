@@ -22,7 +22,7 @@ class Settings:
     repair_glitches: bool = False  # joints a source glitch throws off are left to the decoder, not held to the bounds
     representation: str = "aligned"
     transform: dict = field(default_factory=lambda: {"id": "dct"})
-    classes: str = "subject"
+    classes: str = "pooled"
     split: list[float] | None = None  # forced R, P, T shares of error_cm
     dead_zone: float = 0.2
     basis_precision: float = 0.02  # basis rounding error per direction, as a share of error_cm

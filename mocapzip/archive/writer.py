@@ -23,7 +23,7 @@ from mocapzip import __version__
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.settings import Settings, checked
 from mocapzip.classes.auto import auto_classes, parse_auto
-from mocapzip.classes.by_name import class_namer
+from mocapzip.classes.by_name import class_namer, pooled_classes
 from mocapzip.classes.segment import OVERLAP, coded_range, join_decoded, segment_take
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors
@@ -173,7 +173,24 @@ class _FirstPass:
     rows: list[dict] = field(default_factory=list)  # their rows in meta; class and errors come later
     classes: list[str] = field(default_factory=list)  # each clip's class, if paths decide it (not -c auto)
     poses: dict[str, CovarianceAccumulator] = field(default_factory=dict)  # weighted poses by class (lossy)
+    widths: dict[str, int] = field(default_factory=dict)  # pose width by class (lossy)
     glitches: Counter = field(default_factory=Counter)  # glitches in the source by kind (lossy), and "clips"
+
+    def pool(self) -> None:
+        """`--classes pooled`: the clips of small subjects renamed to their pool
+        (`classes.by_name.pooled_classes`), and their poses summed."""
+        frames = Counter()
+        for name, row in zip(self.classes, self.rows):
+            frames[name] += row["frames"]
+        rename = pooled_classes(frames, self.widths)
+        self.classes = [rename[name] for name in self.classes]
+        poses: dict[str, CovarianceAccumulator] = {}
+        for name, accumulator in self.poses.items():  # in the order the subjects came: deterministic sums
+            if rename[name] in poses:
+                poses[rename[name]].merge(accumulator)
+            else:
+                poses[rename[name]] = accumulator
+        self.poses = poses
 
 
 def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Settings, writer: ArchiveWriter,
@@ -223,14 +240,18 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                     writer.add(f"clip/{len(scan.sources):05d}", stream)
                     scan.rows[-1].update(error_cm=0.0, p99_error_cm=0.0, max_error_cm=0.0)
                 else:
+                    dim = clip.poses.shape[1]
+                    if name_class is not None:
+                        scan.widths.setdefault(scan.classes[-1], dim)
                     if accumulate:
-                        dim = clip.poses.shape[1]
                         scan.poses.setdefault(scan.classes[-1], CovarianceAccumulator(dim)).add(clip.poses)
                     reader.keep(clip)
                 scan.sources.append(source)
     finally:
         _SHARED.clear()
     _report_glitches(scan.glitches)
+    if settings.classes == "pooled" and not settings.lossless:
+        scan.pool()
     return scan
 
 

@@ -58,6 +58,12 @@ def format_text(report: dict, per_clip: bool = False) -> str:
             speed.append(f"peak RSS {o['encode_peak_rss_mb']:.0f} MB encode, {o['decode_peak_rss_mb']:.0f} MB decode")
         if speed:
             lines.append("   " + ", ".join(speed))
+        if run.get("fixed_bytes"):
+            fixed = run["fixed_bytes"]
+            total = sum(fixed.values())
+            lines.append("   fixed costs: " + ", ".join(f"{name} {size:,} B" for name, size in fixed.items())
+                         + f"; {total:,} B, {total / run['archive_bytes']:.1%} of the archive, "
+                           f"{total / o['frames']:.2f} bytes/frame")
         lines.append("   errors measured on: " + run["error_measured_on"])
         lines.append(head)
         lines.append(_text_row("overall", o))

@@ -33,7 +33,7 @@ What is measured, and how (the same text goes into every JSON report under "rule
   error is measured on joint positions directly (no AMC text, no skin error). For each
   target error, each clip gets the parameters (L, k, Q) from a grid with the fewest
   bytes that meet the target (`hou`: section IV, each clip coded alone with its own
-  basis). `hou-shared`: one basis per subject (skeleton), as mcz's default classes
+  basis). `hou-shared`: one basis per subject (skeleton), as mcz's `subject` classes
   share theirs (section V with K = 1 per subject): L and k chosen per subject for the
   fewest bytes with every clip within the target, Q per clip; a clip's bytes are its
   stream plus its share of the basis in proportion to frames.
@@ -88,7 +88,7 @@ class BenchOptions:
     errors: list = field(default_factory=lambda: [1.0])
     representations: list = field(default_factory=lambda: ["aligned"])
     transforms: list = field(default_factory=lambda: ["dct"])
-    classes: list = field(default_factory=lambda: ["subject"])
+    classes: list = field(default_factory=lambda: ["pooled"])
     splits: list = field(default_factory=lambda: [None])
     codecs: list = field(default_factory=lambda: list(CODECS))
     asf: str | None = None
@@ -473,8 +473,20 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
     return _finish_run({"codec": "mcz", "label": _mcz_label(task, options), "target_error_cm": task["error_cm"],
                         "settings": {**settings, "classes": task["classes"], "jobs": options.jobs},
                         "archive_bytes": file_size, "shared_bytes": shared, "class_bytes": sum(class_bytes.values()),
+                        "fixed_bytes": fixed_costs(sizes, file_size),
                         "error_measured_on": "AMC text written by mcz decompress, read back by mocapzip.formats"},
                        rows, clips, distances, speed)
+
+
+def fixed_costs(sizes: dict[str, int], file_size: int) -> dict[str, int]:
+    """What an archive spends besides its clips' streams (`stream_sizes`), in bytes: skeletons,
+    class bases, meta, priors, and the container (the file minus every stream: HDF5's own
+    structures, the index and the header). Frame patches are per clip, not fixed."""
+    def total(prefix: str) -> int:
+        return sum(size for name, size in sizes.items() if name == prefix or name.startswith(prefix + "/"))
+
+    return {"skeletons": total("skeletons"), "bases": total("class"), "meta": total("meta"),
+            "priors": total("priors"), "container": file_size - sum(sizes.values())}
 
 
 def _payload_parts(blob: bytes, coder: str, priors) -> dict:
@@ -842,7 +854,7 @@ def command_line(options: BenchOptions) -> str:
     args = ["mcz", "bench", *map(os.fspath, options.inputs)]
     for flag, values, default in (("-e", [f"{e:g}" for e in options.errors], ["1"]),
                                   ("-r", options.representations, ["aligned"]),
-                                  ("-t", options.transforms, ["dct"]), ("-c", options.classes, ["subject"]),
+                                  ("-t", options.transforms, ["dct"]), ("-c", options.classes, ["pooled"]),
                                   ("--split", [",".join(f"{x:g}" for x in s) for s in options.splits if s], [])):
         if list(values) != default:
             for v in values:

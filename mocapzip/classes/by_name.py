@@ -1,4 +1,4 @@
-"""Which clips share a PCA basis: `--classes single|subject|FILE.csv`.
+"""Which clips share a PCA basis: `--classes pooled|single|subject|FILE.csv`.
 
 A class is just a name per clip. Automatic classes (`--classes auto[:K]`, PPCA and
 annealing) need the loaded poses: they live in `mocapzip.classes.auto`, dispatched by
@@ -26,8 +26,9 @@ def class_namer(mode: str) -> Callable[[ClipSource], str]:
     """
     if mode == "single":
         return lambda clip: "all"
-    if mode == "subject":
-        # Clips sharing a skeleton file are one subject (CMU: one ASF per subject folder).
+    if mode in ("subject", "pooled"):
+        # Clips sharing a skeleton file are one subject (CMU: one ASF per subject folder);
+        # "pooled" merges the small ones once their frames are known (`pooled_classes`).
         return _subject_name
     path = Path(mode)
     if path.suffix.lower() in (".csv", ".tsv") or (path.exists() and not path.is_dir()):
@@ -40,7 +41,28 @@ def class_namer(mode: str) -> Callable[[ClipSource], str]:
             return name
 
         return from_table
-    raise MocapFormatError(f"unknown --classes value {mode!r}: use single, subject, auto[:K] or a CSV file")
+    raise MocapFormatError(f"unknown --classes value {mode!r}: use pooled, single, subject, auto[:K] or a CSV file")
+
+
+POOL_FRAMES = 4000  # a subject with fewer frames shares a basis with the other small ones (benchmarks/small_sets.py)
+
+
+def pooled_classes(frames: dict[str, int], widths: dict[str, int]) -> dict[str, str]:
+    """`--classes pooled`: each subject's class, by its frames and pose width. A subject with
+    POOL_FRAMES frames or more keeps a basis of its own; the others of one pose width share
+    one ("pooled", or "pooled-W" where widths differ), as a basis costs a few KB whoever uses
+    it, and for a short subject that is more than what its own basis saves. A pool of one
+    keeps the subject's name."""
+    small: dict[int, list[str]] = {}
+    for name in frames:
+        if frames[name] < POOL_FRAMES:
+            small.setdefault(widths[name], []).append(name)
+    out = {name: name for name in frames}
+    for width, names in small.items():
+        if len(names) > 1:
+            pool = "pooled" if len(set(widths.values())) == 1 else f"pooled-{width}"
+            out.update(dict.fromkeys(names, pool))
+    return out
 
 
 def _subject_name(clip: ClipSource) -> str:
