@@ -22,6 +22,11 @@ def test_small_subjects_of_one_width_share_a_pool():
     assert pooled_classes(frames, dict.fromkeys(frames, 129)) == {"a": "a", "b": "pooled", "c": "pooled", "d": "pooled"}
 
 
+def test_a_pool_never_takes_a_subjects_name():
+    frames = {"pooled": 99_999, "a": 10, "b": 20}
+    assert pooled_classes(frames, dict.fromkeys(frames, 129)) == {"pooled": "pooled", "a": "pooled+", "b": "pooled+"}
+
+
 def test_pools_split_by_pose_width_and_a_pool_of_one_keeps_its_name():
     frames = {"a": 10, "b": 20, "c": 30}
     widths = {"a": 129, "b": 129, "c": 90}

@@ -249,21 +249,23 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                 scan.sources.append(source)
     finally:
         _SHARED.clear()
-    _report_glitches(scan.glitches)
+    _report_glitches(scan.glitches, settings.repair_glitches)
     if settings.classes == "pooled" and not settings.lossless:
         scan.pool()
     return scan
 
 
-def _report_glitches(found: Counter) -> None:
-    """One warning for the glitches found in the source: reported, never fixed (the bounds hold
-    against the source as written)."""
+def _report_glitches(found: Counter, repair: bool) -> None:
+    """One warning for the glitches found in the source: by default kept as written (the bounds
+    hold against the source as written); with `repair` (--repair-glitches) the spikes are not."""
     total = sum(n for kind, n in found.items() if kind != "clips")
     if total:
         kinds = ", ".join(f"{kind} {found[kind]}" for kind in ("jump", "limits", "frozen", "zeroed") if found[kind])
+        fate = ("jumps and limits smoothed over (--repair-glitches; `mcz info` lists the frames), the rest kept as "
+                "written" if repair else "kept as written, the errors are measured against them")
         warnings.warn(f"{total} glitch{'' if total == 1 else 'es'} in the source, in {found['clips']} "
-                      f"clip{'' if found['clips'] == 1 else 's'} ({kinds}); kept as written, the errors are measured "
-                      "against them; `mcz inspect --check` lists them", stacklevel=2)
+                      f"clip{'' if found['clips'] == 1 else 's'} ({kinds}); {fate}; `mcz inspect --check` lists them",
+                      stacklevel=2)
 
 
 CLIPS_AHEAD = 2  # clips read ahead of the one taken in, per worker: each may be tens of MB

@@ -61,6 +61,8 @@ def pooled_classes(frames: dict[str, int], widths: dict[str, int]) -> dict[str, 
     for width, names in small.items():
         if len(names) > 1:
             pool = "pooled" if len(set(widths.values())) == 1 else f"pooled-{width}"
+            while pool in frames:  # a subject's own name: the pool takes another
+                pool += "+"
             out.update(dict.fromkeys(names, pool))
     return out
 

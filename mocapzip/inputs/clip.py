@@ -107,11 +107,6 @@ class LoadedClip:
         distances = self.decode_tail.joint_distances(self.as_written(values.copy()), self._originals(slice(None))[0])
         return FinalCheck(values, distances, {} if twist is None else flip_ranges(twist.flips, self.model))
 
-    def decoded_channels(self, poses: np.ndarray, root: np.ndarray | None) -> np.ndarray:
-        """The channel values (every frame, before the writer rounds them) that the decoder makes of
-        `poses`/`root` with the twist flips `final_check` stores for them."""
-        return self._decode(poses, root, slice(None))[0]
-
     def as_written(self, values: np.ndarray) -> np.ndarray:
         """`values` rounded, in place, to what the AMC text the writer makes of them reads back as."""
         compiled.round_as_written(values, self.motion.style.notation == "f", self.motion.style.digits)

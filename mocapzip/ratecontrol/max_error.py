@@ -6,7 +6,8 @@ joint and frame, end to end through the written AMC values, and each frame with 
 further than the bound gets a patch: its residual in the channels that move those joints,
 at the coarsest level (step max_error, halved per level) that brings every joint of the
 frame within the bound without raising the frame's summed error (so the clip's mean, already
-within `-e`, cannot rise). Frames are independent once decoded to channels, so each is
+within `-e`, cannot rise; with --repair-glitches the glitch's joints are left out of both, and
+`smallest_within` codes the clip finer should its mean rise). Frames are independent once decoded to channels, so each is
 settled on its own.
 
 Patching only the frames that need it measured cheaper than a finer coding of the whole
@@ -79,7 +80,7 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     values, original = check.values, clip.positions
     distances = check.distances.copy()
     repaired = None
-    if bounds.repair_glitches:
+    if bounds.repair_glitches and bounds.on_joints:  # with no bound nothing is let past one
         repaired = glitch_mask(clip.model, clip.glitches, clip.motion.frame_numbers)
     limits = joint_limits(clip, bounds, repaired)
     bad = np.flatnonzero(np.any(distances > limits, axis=1)) if limits is not None else np.zeros(0, np.int64)
@@ -90,6 +91,8 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     residual = clip.motion.values[bad] - values[bad]
     chains = _chain_channels(clip)
     before, limit = distances[bad], limits[bad]
+    # repaired joints (--repair-glitches) neither call for corrections nor count against one
+    held = np.ones(before.shape, bool) if repaired is None else ~repaired[bad]
     # the channels a frame corrects: those of the joints beyond their bound, and their ancestors'
     corrected = (before > limit).astype(np.int64) @ chains > 0
     # a frame starts at the level whose step is its tightest broken bound
@@ -106,11 +109,12 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
         ints[pending] = UniformQuantiser(1.0, PATCH_DEAD_ZONE).quantise(kept / row_steps)
         patched = values[bad[pending]] + ints[pending] * row_steps  # as FramePatches.apply adds them
         after = clip.decode_tail.joint_distances(clip.as_written(patched), original[bad[pending]])
-        passed = np.all(after <= limit[pending], axis=1) & (after.sum(axis=1) <= before[pending].sum(axis=1))
+        passed = np.all(after <= limit[pending], axis=1) & (
+            (after * held[pending]).sum(axis=1) <= (before[pending] * held[pending]).sum(axis=1))
         distances[bad[pending[passed]]] = after[passed]
         failed, after = pending[~passed], after[~passed]
         # a joint beyond its bound, or worse than before, adds its chain; with nothing to add, a finer level
-        worse = (after > limit[failed]) | (after > before[failed])
+        worse = ((after > limit[failed]) | (after > before[failed])) & held[failed]
         wider = corrected[failed] | (worse.astype(np.int64) @ chains > 0)
         finer = np.all(wider == corrected[failed], axis=1)
         corrected[failed] = wider
@@ -152,16 +156,18 @@ def _chain_channels(clip) -> np.ndarray:
 
 
 def smallest_within(coded_at: Callable, target: float, bounded: bool):
-    """The smallest of `coded_at(aim)` (a coding with `.size` and `.patch_bytes`) over mean aims target,
-    LOWERED x target, ...: lowered while patches take more than PATCH_SHARE of a coding's bytes and
-    the codings shrink."""
-    best = coded_at(target)
+    """The smallest of `coded_at(aim)` (a coding with `.size`, `.patch_bytes` and `.achieved`) over
+    mean aims target, LOWERED x target, ...: lowered while patches take more than PATCH_SHARE of
+    a coding's bytes and the codings shrink, or while the mean is over `target` (patches keep
+    the held joints' summed error; a repaired glitch's joints may move either way)."""
+    best, aim = coded_at(target), target
     for _ in range(MAX_LOWERINGS if bounded else 0):
-        if best.patch_bytes <= PATCH_SHARE * best.size:
+        over = best.achieved.mean > target
+        if not over and best.patch_bytes <= PATCH_SHARE * best.size:
             break
-        target *= LOWERED
-        candidate = coded_at(target)
-        if candidate.size >= best.size:
+        aim *= LOWERED
+        candidate = coded_at(aim)
+        if not over and (candidate.size >= best.size or candidate.achieved.mean > target):
             break
         best = candidate
     return best
