@@ -70,11 +70,12 @@ def checked(settings: Settings) -> Settings:
     if settings.coefficient_coder not in written_coders():
         raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
                             f"{FORMAT_VERSION}; choose one of {', '.join(written_coders())}")
-    bounds = [b for b in (settings.max_error_cm, settings.contact_error_cm) if b is not None]
-    for name in ("max_error_cm", "contact_error_cm"):
-        if getattr(settings, name) is not None and not getattr(settings, name) > 0:
-            raise SettingsError(f"{name} must be above 0, got {getattr(settings, name)}")
-    numbers = [settings.error_cm, *bounds, settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
+    bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm}
+    bounds = {name: bound for name, bound in bounds.items() if bound is not None}
+    for name, bound in bounds.items():
+        if not bound > 0:
+            raise SettingsError(f"{name} must be above 0, got {bound}")
+    numbers = [settings.error_cm, *bounds.values(), settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
                settings.fps, *(settings.split or [])]
     if not all(math.isfinite(x) for x in numbers):
         raise SettingsError("settings must be finite numbers (no inf or nan)")

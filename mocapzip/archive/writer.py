@@ -223,7 +223,7 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                     failure = failure or (outcome if isinstance(outcome, Exception) else None)
                     if failure is not None:
                         raise failure
-                    clip, stream, glitches = outcome
+                    clip, stream = outcome
                     clip.model = model
                     if not settings.lossless:
                         _check_codable(clip)
@@ -233,7 +233,9 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                     record_skip(skipped, source, exc)
                     continue
                 scan.rows.append(_clip_row(clip))
-                scan.glitches.update({**glitches, "clips": 1} if glitches else {})
+                if clip.glitches:
+                    scan.glitches.update(g.kind for g in clip.glitches)
+                    scan.glitches["clips"] += 1
                 if name_class is not None:
                     scan.classes.append(name_class(source))
                 if settings.lossless:
@@ -273,10 +275,10 @@ CLIPS_AHEAD = 2  # clips read ahead of the one taken in, per worker: each may be
 _SHARED: dict = {}  # what the forked workers of the first pass read (`_read_clip`)
 
 
-def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None, Counter] | MocapFormatError | OSError:
+def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None] | MocapFormatError | OSError:
     """The first pass's work on one clip, in a worker (or here, with one job): the clip read,
-    without its skeleton model (the caller has it: sent back, it would be a copy per clip), its
-    lossless stream (None if lossy) and its glitches by kind (lossy: `inputs.glitches`); or the
+    without its skeleton model (the caller has it: sent back, it would be a copy per clip), with
+    its glitches (lossy: `inputs.glitches`), and its lossless stream (None if lossy); or the
     error that stopped its reading, to be raised (or the clip skipped) at its turn. The
     skeleton's warnings are the caller's to give."""
     reader = _SHARED["reader"]
@@ -287,9 +289,8 @@ def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None, Counter] |
         clip = reader.read(source)
     except (MocapFormatError, OSError) as exc:
         return exc
-    glitches = Counter(g.kind for g in clip.glitches or [])
     clip.model = None
-    return clip, encode_channels(clip.motion.values) if clip.encoded is None else None, glitches
+    return clip, encode_channels(clip.motion.values) if clip.encoded is None else None
 
 
 def _check_codable(clip: LoadedClip) -> None:

@@ -861,10 +861,9 @@ def command_line(options: BenchOptions) -> str:
                 args += [flag, v]
     if list(options.codecs) != list(CODECS):
         args += ["--codec", ",".join(options.codecs)]
-    if options.max_error is not None:
-        args += ["--max-error", f"{options.max_error:g}" if options.max_error != "none" else "none"]
-    if options.contact_error is not None:
-        args += ["--contact-error", f"{options.contact_error:g}" if options.contact_error != "none" else "none"]
+    for flag, bound in (("--max-error", options.max_error), ("--contact-error", options.contact_error)):
+        if bound is not None:
+            args += [flag, "none" if bound == "none" else f"{bound:g}"]
     if "dwt" in options.transforms and options.wavelet != "db4":
         args += ["--wavelet", options.wavelet]
     for flag, value in (("--groups", options.groups), ("--asf", options.asf)):

@@ -54,7 +54,7 @@ class LoadedClip:
     positions: np.ndarray | None  # (F, J, 3) cm, original joint positions (lossy mode)
     axis_weight_cm: float = 1.0
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
-    glitches: list[Glitch] | None = None  # the source's (`inputs.glitches`; lossy mode)
+    glitches: list[Glitch] | None = None  # the source's (`inputs.glitches`; lossy, read with a frame rate)
     _scored_frames: tuple = field(default=(None, None), repr=False, compare=False)  # see _originals
 
     @property
@@ -90,13 +90,13 @@ class LoadedClip:
     def layout(self) -> ChannelLayout:
         return self.model.layout(self.motion)
 
-    def error(self, poses: np.ndarray, root: np.ndarray | None, frames=slice(None), final: bool = False):
-        """(mean, max) joint-position error in cm of decoded `poses`/`root` for the original `frames`.
-
-        `final` rounds the channels as the AMC writer will (the source's number style), as on disk.
+    def error(self, poses: np.ndarray, root: np.ndarray | None, frames=slice(None)):
+        """(mean, max) joint-position error in cm of decoded `poses`/`root` for the original `frames`,
+        the channels unrounded (the searches' score; `final_check` scores them as written).
         Solved bones take the twist nearer the original (`final_check` tells the decoder which).
         """
-        return self._score(poses, root, frames, final)
+        values, _ = self._decode(poses, root, frames)
+        return self.decode_tail.error(values, self._originals(frames)[0])
 
     def final_check(self, poses: np.ndarray, root: np.ndarray | None) -> FinalCheck:
         """`poses`/`root` decoded and scored on every frame as on disk (`FinalCheck`), with what the
@@ -115,13 +115,6 @@ class LoadedClip:
     @cached_property
     def decode_tail(self) -> DecodeTail:
         return DecodeTail(self.model, self.representation, self.layout, self.encoded.params, self.axis_weight_cm)
-
-    def _score(self, poses: np.ndarray, root: np.ndarray | None, frames, final: bool):
-        """(mean, max) error of decoded weighted `poses` for the original `frames`."""
-        values, _ = self._decode(poses, root, frames)
-        if final:
-            self.as_written(values)
-        return self.decode_tail.error(values, self._originals(frames)[0])
 
     def _decode(self, poses: np.ndarray, root: np.ndarray | None, frames):
         """(channel values, the TwistChoice made) of decoded weighted `poses` for the original
@@ -171,10 +164,10 @@ class ClipReader:
     """
 
     def __init__(self, representation_name: str | None, axis_weight_cm: float = 1.0,
-                 budget_bytes: int | None = None, axes_from_positions: bool = False, fps: float = 120.0):
+                 budget_bytes: int | None = None, axes_from_positions: bool = False, fps: float | None = None):
         self.representation_name, self.axis_weight_cm = representation_name, axis_weight_cm
         self.axes_from_positions = axes_from_positions
-        self.budget_bytes, self.fps = budget_bytes, fps
+        self.budget_bytes, self.fps = budget_bytes, fps  # fps None: glitches are not looked for
         self._skeletons: dict = {}  # ASF path -> (skeleton, model): small, read once
         self._glitches: dict[ClipSource, list[Glitch]] = {}  # found once per clip, however often it is read
         self._kept: dict[ClipSource, LoadedClip] = {}
@@ -197,7 +190,7 @@ class ClipReader:
         if encoded is not None:  # the joints the error is measured against, by the check's own kinematics
             clip.positions = clip.decode_tail.positions(motion.values)
             clip.glitches = self._glitches.get(source)
-            if clip.glitches is None:
+            if clip.glitches is None and self.fps is not None:
                 clip.glitches = find_glitches(skeleton, model, motion, clip.positions, self.fps)
         return clip
 
