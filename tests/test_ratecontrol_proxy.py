@@ -9,11 +9,44 @@ import pytest
 from mocapzip.codec.clip_stream import scale_root, unscale_root
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.motion.rotations import axis_rotation
-from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy, joint_errors
+from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy, mean_joint_error
 from mocapzip.stages import get_stage
 
 FRAMES, JOINTS, AXES = 96, 4, 3  # poses: 3 columns per joint, then 3 weighted bone-axis columns
 COLUMNS = slice(0, 3 * JOINTS)
+
+
+def joint_errors(error: np.ndarray, columns: slice, shift: np.ndarray | None = None) -> np.ndarray:
+    """The definition `mean_joint_error` computes in one pass, in numpy: per frame and joint, the
+    norm of its position columns plus `shift` and of the axis columns spread over the joints."""
+    positions = error[:, columns].reshape(len(error), -1, 3)
+    if shift is not None:
+        positions = positions + shift
+    rest = (error[:, columns.stop:] ** 2).sum(axis=1, keepdims=True)
+    if positions.shape[1] == 0:
+        return np.sqrt(rest)
+    return np.sqrt((positions**2).sum(axis=2) + rest / positions.shape[1])
+
+
+@pytest.mark.parametrize("frames", [1, 7, 96])
+@pytest.mark.parametrize("columns", [slice(0, 0), slice(0, 3), COLUMNS, slice(0, 3 * JOINTS + AXES)])
+def test_mean_joint_error_is_its_definition(frames, columns):
+    rng = np.random.default_rng(frames)
+    error = rng.normal(size=(frames, 3 * JOINTS + AXES))
+    assert mean_joint_error(error, columns) == pytest.approx(joint_errors(error, columns).mean(), rel=1e-12)
+
+
+@pytest.mark.parametrize("frames", [1, 7, 96])
+def test_mean_joint_error_moves_joints_by_the_root_error(frames):
+    rng = np.random.default_rng(frames)
+    error = rng.normal(size=(frames, 3 * JOINTS + AXES))
+    root = rng.normal(size=(frames, 4))
+    to_character = np.swapaxes(axis_rotation("y", rng.uniform(-np.pi, np.pi, frames)), -1, -2)  # not contiguous
+    lever = rng.normal(scale=30.0, size=(frames, JOINTS, 3))
+    shift = root[:, None, :3] @ to_character
+    joints = joint_errors(error, COLUMNS, shift + root[:, 3, None, None] * lever)
+    expected = (joints.sum() + np.sqrt((shift**2).sum(axis=2)).sum()) / (joints.size + frames)
+    assert mean_joint_error(error, COLUMNS, root, to_character, lever) == pytest.approx(expected, rel=1e-12)
 
 
 def orthonormal_basis(rng, width: int, q: int) -> np.ndarray:
