@@ -12,6 +12,30 @@ from mocapzip.codec.quantise import UniformQuantiser
 EPS = 1e-12
 
 
+@pytest.mark.parametrize("dead_zone", [0.0, 0.2, 0.49])
+@pytest.mark.parametrize("step", [1e-4, 0.1, 3.0])
+@pytest.mark.parametrize("shape", [(0,), (1,), (1000,), (40, 7)])
+def test_quantise_is_the_documented_formula(shape, step, dead_zone):
+    """The compiled quantiser gives exactly sign(x) * max(floor(|x| / step + 0.5 - dead_zone), 0),
+    bin edges and signed zeros included."""
+    rng = np.random.default_rng(len(shape))
+    x = rng.normal(scale=50 * step, size=shape)
+    edges = (np.arange(x.size) % 40 - 20 + 0.5 + dead_zone) * step  # values at the thresholds
+    x = np.where(rng.random(shape) < 0.3, edges.reshape(shape), x)
+    x.reshape(-1)[:2] = [0.0, -0.0] if x.size >= 2 else x.reshape(-1)[:2]
+    expected = (np.sign(x) * np.maximum(np.floor(np.abs(x) / step + 0.5 - dead_zone), 0.0)).astype(np.int64)
+    ints = UniformQuantiser(step, dead_zone).quantise(x)
+    assert ints.shape == x.shape and ints.dtype == np.int64
+    np.testing.assert_array_equal(ints, expected)
+    np.testing.assert_array_equal(UniformQuantiser(step, dead_zone).quantise(x.T), expected.T)  # any layout
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 1e300])
+def test_quantise_refuses_what_it_cannot_represent(bad):
+    with pytest.raises(ValueError, match="not finite or too large"):
+        UniformQuantiser(0.1).quantise(np.array([1.0, bad]))
+
+
 @pytest.mark.parametrize("step", [1e-4, 0.1, 3.0])
 def test_error_bound_without_dead_zone(step):
     x = np.random.default_rng(0).normal(scale=100 * step, size=10_000)

@@ -1,6 +1,8 @@
 """The rate control on real clips: searches on the calibrated proxy, true end-to-end scores only to
 calibrate and verify, and every clip within its target as written."""
 
+import math
+
 import pytest
 
 from mocapzip.archive.settings import Settings
@@ -9,7 +11,8 @@ from mocapzip.codec.clip_stream import reconstruct
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.inputs.clip import load_clips
 from mocapzip.inputs.discover import find_clips
-from mocapzip.ratecontrol.encode import MAX_CALIBRATIONS, code_clip
+from mocapzip.ratecontrol.encode import (BANDS, MAX_CALIBRATIONS, MAX_TRUNCATION_SHARE, STEP_RANGE,
+                                         _smallest_near_band, _smallest_over_bands, code_clip)
 from mocapzip.stages import get_stage
 
 
@@ -42,3 +45,42 @@ def test_each_clip_lands_just_under_its_target_with_few_true_scores(subject, tar
                                               clip.motion.n_frames))
         assert again.error == coding.error and again.twists == coding.twists
 
+
+
+class _Sized:
+    """A coding whose payload has a given length (what the band searches measure)."""
+
+    def __init__(self, size: int):
+        self.size = size
+
+    def payload(self) -> bytes:
+        return bytes(self.size)
+
+
+def band_landscape(best_band: float, floor: float = 0.0):
+    """(code, error) of a made-up clip: the error is floor + step / 3 plus a truncation term that
+    grows as the band narrows, and the bytes are smallest at `best_band` for the largest allowed step."""
+    def error(step: float, band: float) -> float:
+        return floor + step / 3 + 0.02 / band
+
+    def code(step: float, band: float) -> _Sized:
+        return _Sized(int(1000 / step + 4000 * abs(math.log(band / best_band))))
+
+    return code, error
+
+
+@pytest.mark.parametrize("best", [0.13, 0.06, 1.0])
+@pytest.mark.parametrize("start", [0, 5, 9])
+def test_the_near_band_search_walks_to_the_band_the_sweep_finds(best, start):
+    code, error = band_landscape(best)
+    swept = _smallest_over_bands(code, error, 1.0)
+    assert swept[1] == best
+    near = _smallest_near_band(code, error, 1.0, start, 2.0)
+    assert near[1] == best and near[0] == pytest.approx(swept[0], rel=0.02)
+
+
+def test_the_near_band_search_falls_back_to_the_sweep_if_its_start_cannot_meet_the_target():
+    code, error = band_landscape(0.2)
+    narrowest = len(BANDS) - 1  # truncation alone there: 0.02 / 0.02 = 1 > MAX_TRUNCATION_SHARE
+    assert error(STEP_RANGE[0], BANDS[narrowest]) > MAX_TRUNCATION_SHARE
+    assert _smallest_near_band(code, error, 1.0, narrowest, 2.0) == _smallest_over_bands(code, error, 1.0)

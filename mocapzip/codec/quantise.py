@@ -6,7 +6,10 @@ mostly noise, then become 0 and the entropy coder stores long zero runs for
 almost nothing.
 """
 
+import math
+
 import numpy as np
+from numba import njit
 
 from mocapzip.stages import Stage, register
 
@@ -41,15 +44,29 @@ class UniformQuantiser(Stage):
         self.dead_zone = float(dead_zone)
 
     def quantise(self, x) -> np.ndarray:
-        levels = np.abs(np.asarray(x, np.float64)) / self.step
-        if not np.all(levels < _MAX_LEVEL):  # also rejects NaN and infinity
+        x = np.asarray(x, np.float64)
+        ints = np.empty(x.shape, np.int64)
+        if not _quantise(np.ascontiguousarray(x).reshape(-1), self.step, self.dead_zone, ints.reshape(-1)):
             raise ValueError("values are not finite or too large for this step")
-        magnitude = np.maximum(np.floor(levels + 0.5 - self.dead_zone), 0.0)
-        return (np.sign(x) * magnitude).astype(np.int64)
+        return ints
 
     def dequantise(self, q) -> np.ndarray:
         return np.asarray(q, np.int64) * self.step
 
     def params(self) -> dict:
         return {"step": self.step, "dead_zone": self.dead_zone}
+
+
+@njit(cache=True)
+def _quantise(x, step, dead_zone, out):
+    """The class docstring's formula, in one pass (the rate control quantises tens of thousands
+    of times per database; numpy's six passes took 2.6 s of 36 on the shared CMU set). False
+    if a value is not finite or |x| / step reaches _MAX_LEVEL."""
+    for i in range(x.size):
+        levels = abs(x[i]) / step
+        if not levels < _MAX_LEVEL:
+            return False
+        magnitude = max(math.floor(levels + 0.5 - dead_zone), 0.0)
+        out[i] = int(magnitude) if x[i] > 0 else -int(magnitude)
+    return True
 

@@ -166,13 +166,14 @@ def _pca_shares(settings) -> tuple[float, ...]:
 
 def _estimated_sizes(index: int) -> tuple[list[int], float]:
     """The clip's coded bytes with each candidate basis, as the calibrated proxy predicts them
-    (`_ClipSearch.pick`, then one end-to-end score per basis sets its factor: the proxy misses
-    part of the error a basis leaves, so the factor differs between bases)."""
+    (`_ClipSearch.pick`, each basis's bands searched near the band the one before picked; one
+    end-to-end score per basis sets its factor: the proxy misses part of the error a basis
+    leaves, so the factor differs between bases)."""
     settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
-    sizes, scale = [], 1.0
+    sizes, scale, step, band = [], 1.0, None, None
     for basis in _SHARED["bases"]:
         search = _ClipSearch(clip, basis, transform, settings.error_cm, settings.dead_zone)
-        step, band = search.pick(scale)
+        step, band = search.pick(scale, near=band, guess=step)
         scale = search.measured_scale(step, band, scale)
         sizes.append(len(search.code(search.step_for(band, scale, guess=step), band).payload()))
     return sizes, scale
@@ -336,10 +337,19 @@ class _ClipSearch:
                                rel_tol=STEP_TOLERANCE, guess=guess, close=PROXY_CLOSE)
         return step
 
-    def pick(self, scale: float) -> tuple[float, float]:
-        """(step, band) of the smallest coding whose predicted error meets the aim."""
-        return _smallest_over_bands(lambda step, band: self.code(step, band),
-                                    lambda step, band: self.predicted(step, band, scale), CALIBRATION_AIM * self.target)
+    def pick(self, scale: float, near: float | None = None, guess: float | None = None) -> tuple[float, float]:
+        """(step, band) of the smallest coding whose predicted error meets the aim; only bands next
+        to `near` (the band another basis picked for the clip, at step `guess`) if given."""
+        def code(step: float, band: float) -> CodedClip:
+            return self.code(step, band)
+
+        def error(step: float, band: float) -> float:
+            return self.predicted(step, band, scale)
+
+        target = CALIBRATION_AIM * self.target
+        if near is None:
+            return _smallest_over_bands(code, error, target)
+        return _smallest_near_band(code, error, target, BANDS.index(near), guess)
 
     def measured_scale(self, step: float, band: float, scale: float) -> float:
         """The proxy factor measured by one end-to-end score (sampled) of the coding at `step`, `band`."""
@@ -425,6 +435,35 @@ class _ClipSearch:
         if coding is None or coding.coded.pose_step != float(np.float32(step)):
             coding = self.final(self.code(step, band), scale)
         return self.tightened(coding, band)
+
+
+def _smallest_near_band(code, error, target: float, start: int, guess: float) -> tuple[float, float]:
+    """`_smallest_over_bands` as a local search from BANDS[start]: narrower bands, then wider
+    ones, while each comes out smaller. A clip's best band follows its motion more than its
+    basis, so the band another basis picked is a close start: two or three bands are tried
+    instead of the whole sweep."""
+    def tried(i: int, guess: float) -> tuple[int, float] | None:
+        """(bytes, step) at BANDS[i], or None if the band cannot meet the target."""
+        if error(STEP_RANGE[0], BANDS[i]) > MAX_TRUNCATION_SHARE * target:
+            return None
+        step, err = largest_step(lambda s: error(s, BANDS[i]), target, *STEP_RANGE, rel_tol=STEP_TOLERANCE,
+                                 guess=guess, close=PROXY_CLOSE)
+        return None if err > target else (len(code(step, BANDS[i]).payload()), step)
+
+    best = tried(start, guess)
+    if best is None:
+        return _smallest_over_bands(code, error, target)
+    index = start
+    for direction in (1, -1):  # narrower, then (if that did not pay) wider
+        i = start + direction
+        while 0 <= i < len(BANDS):
+            candidate = tried(i, best[1])
+            if candidate is None or candidate[0] >= best[0]:
+                break
+            best, index, i = candidate, i, i + direction
+        if index != start:
+            break
+    return best[1], BANDS[index]
 
 
 def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
