@@ -1,15 +1,17 @@
 """Small sets: what a few clips from many subjects cost, per `--classes` choice, and where the bytes go.
 
     python benchmarks/small_sets.py [-j N] [--classes pooled,subject,single,auto] [--pool-frames 4000,...]
+                                    [--basis-precision 0.02,0.04,...] [-e CM]
 
 Builds, in a temporary folder of links to ../shared/data/cmu (nothing is copied), three sets:
 the first clip of each subject, the first two of each subject, and the whole shared set. Each
-is compressed at 1 cm (compress's defaults otherwise, its default --max-error included) once per `--classes` choice, and one
+is compressed at 1 cm (`-e`; compress's defaults otherwise, its default --max-error included) once per `--classes` choice, and one
 markdown row is printed per run: bytes per frame, and the fixed costs (skeletons, class
 bases, meta, priors, container: `mocapzip.bench.runner.fixed_costs`) against the clips'
 own streams. `--pool-frames` runs `pooled` once per threshold instead (`classes.by_name.POOL_FRAMES`:
 subjects with fewer frames share a basis), which is how the default threshold was chosen
-(docs/fixed_costs.md). Issue 17's small-set target is 2.0 bytes/frame for 1-2 clips from each of 10
+(docs/fixed_costs.md). `--basis-precision` runs the default classes once per
+`Settings.basis_precision` (how finely class bases are stored), which is how its default was chosen. Issue 17's small-set target is 2.0 bytes/frame for 1-2 clips from each of 10
 or more subjects.
 """
 
@@ -50,10 +52,19 @@ def main(argv=None) -> None:
     parser.add_argument("-j", "--jobs", type=int, default=2)
     parser.add_argument("--classes", default="pooled,subject,single,auto")
     parser.add_argument("--pool-frames", help="comma-separated thresholds: run `pooled` with each")
+    parser.add_argument("--basis-precision", help="comma-separated basis precisions: run `pooled` with each")
+    parser.add_argument("-e", "--error", type=float, default=1.0, help="target mean error, cm (default 1)")
     args = parser.parse_args(argv)
-    runs = [("pooled", int(t)) for t in args.pool_frames.split(",")] if args.pool_frames else \
-        [(classes, by_name.POOL_FRAMES) for classes in args.classes.split(",")]
-    options = f" --pool-frames {args.pool_frames}" if args.pool_frames else ""
+    default = Settings().basis_precision
+    if args.pool_frames:
+        runs = [("pooled", int(t), default) for t in args.pool_frames.split(",")]
+    elif args.basis_precision:
+        runs = [("pooled", by_name.POOL_FRAMES, float(p)) for p in args.basis_precision.split(",")]
+    else:
+        runs = [(classes, by_name.POOL_FRAMES, default) for classes in args.classes.split(",")]
+    options = "".join(f" {flag} {value}" for flag, value in (("--pool-frames", args.pool_frames),
+                      ("--basis-precision", args.basis_precision), ("-e", args.error if args.error != 1.0 else None))
+                      if value)
     print(f"`python benchmarks/small_sets.py -j {args.jobs}{options}` ({os.cpu_count()} CPUs, "
           f"load average {os.getloadavg()[0]:.1f} at start).\n")
     print("| set | clips | subjects | frames | --classes | bytes/frame | skeletons | bases | meta | priors | "
@@ -62,20 +73,23 @@ def main(argv=None) -> None:
     with tempfile.TemporaryDirectory() as work:
         for per_subject in (1, 2, None):
             inputs = linked_subset(Path(work), per_subject)
-            for classes, pool_frames in runs:
+            for classes, pool_frames, precision in runs:
                 by_name.POOL_FRAMES = pool_frames
                 path = Path(work) / "set.mcz"
                 started = time.perf_counter()
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # glitches and a clip cut short: said by compress, not here
-                    summary = compress([inputs], path, Settings(classes=classes, max_error_cm=max_error_cm(None, 1.0)), jobs=args.jobs, force=True)
+                    settings = Settings(classes=classes, error_cm=args.error, max_error_cm=max_error_cm(None, args.error),
+                                        basis_precision=precision)
+                    summary = compress([inputs], path, settings, jobs=args.jobs, force=True)
                 seconds = time.perf_counter() - started
                 with Archive(path) as archive:
                     fixed = fixed_costs(archive.stream_sizes(), summary["output_bytes"])
                     subjects = len(archive.meta["skeletons"])
                 total = sum(fixed.values())
                 name = f"first {per_subject} per subject" if per_subject else "whole shared set"
-                print(f"| {name} | {summary['clips']} | {subjects} | {summary['frames']:,} | {classes}{f' ({pool_frames:,})' * (classes == 'pooled')} | "
+                variant = f" ({pool_frames:,})" if args.pool_frames else (f" ({precision:g})" if args.basis_precision else "")
+                print(f"| {name} | {summary['clips']} | {subjects} | {summary['frames']:,} | {classes}{variant} | "
                       f"{summary['bytes_per_frame']:.3f} | {fixed['skeletons']:,} | {fixed['bases']:,} | "
                       f"{fixed['meta']:,} | {fixed['priors']:,} | {fixed['container']:,} | "
                       f"{total / summary['output_bytes']:.0%} | {summary['output_bytes'] - total:,} | {seconds:.0f} |",

@@ -25,7 +25,7 @@ class Settings:
     classes: str = "pooled"
     split: list[float] | None = None  # forced R, P, T shares of error_cm
     dead_zone: float = 0.2
-    basis_precision: float = 0.02  # basis rounding error per direction, as a share of error_cm
+    basis_precision: float = 0.04  # basis rounding error per direction, as a share of error_cm (docs/fixed_costs.md)
     axis_weight_cm: float = 12.0  # weight of bone axis vectors against positions (weighted.pose_weights; solved_bones.py)
     fps: float = 120.0
     lossless: bool = False
