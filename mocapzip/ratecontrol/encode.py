@@ -104,15 +104,15 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         # Shares that need the same component count get the same basis: estimate it once.
         counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
         candidates = [basis_of(q, settings.basis_precision) for q in counts]
-        _SHARED["scales"] = [None] * len(clips)
+        _SHARED["starts"] = [None] * len(clips)
         basis = candidates[0]
         if len(candidates) > 1:
             _SHARED["bases"] = candidates
-            estimates = parallel_map(_estimated_sizes, range(len(clips)), jobs)  # per clip: (bytes per basis, factor)
-            totals = [len(b.encode()) + sum(sizes[i] for sizes, _ in estimates) for i, b in enumerate(candidates)]
-            near = [b for b, total in zip(candidates, totals) if total <= (1 + CANDIDATE_MARGIN) * min(totals)]
-            basis = max(near, key=lambda b: b.q)
-            _SHARED["scales"] = [scale for _, scale in estimates]
+            estimates = parallel_map(_estimated_sizes, range(len(clips)), jobs)  # per clip and basis: (bytes, start)
+            totals = [len(b.encode()) + sum(clip[i][0] for clip in estimates) for i, b in enumerate(candidates)]
+            near = [i for i, total in enumerate(totals) if total <= (1 + CANDIDATE_MARGIN) * min(totals)]
+            chosen = max(near, key=lambda i: candidates[i].q)
+            basis, _SHARED["starts"] = candidates[chosen], [clip[chosen][1] for clip in estimates]
         basis, codings = _coded_with(basis, basis_of, clips, target, settings, jobs)
     finally:
         _SHARED.clear()
@@ -164,19 +164,22 @@ def _pca_shares(settings) -> tuple[float, ...]:
     return (settings.split[1] / sum(settings.split),) if settings.split else PCA_SHARES
 
 
-def _estimated_sizes(index: int) -> tuple[list[int], float]:
-    """The clip's coded bytes with each candidate basis, as the calibrated proxy predicts them
-    (`_ClipSearch.pick`, each basis's bands searched near the band the one before picked; one
-    end-to-end score per basis sets its factor: the proxy misses part of the error a basis
-    leaves, so the factor differs between bases)."""
+def _estimated_sizes(index: int) -> list[tuple[int, tuple[float, float, float]]]:
+    """Per candidate basis, the clip's coded bytes as the calibrated proxy predicts them, and
+    where its coding with that basis starts (step, band, proxy factor: `code_clip`'s `start`).
+
+    Each basis's bands are searched near the band the one before picked (`_ClipSearch.pick`);
+    one end-to-end score per basis sets its factor: the proxy misses part of the error a basis
+    leaves, so the factor differs between bases."""
     settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
-    sizes, scale, step, band = [], 1.0, None, None
+    estimates, scale, step, band = [], 1.0, None, None
     for basis in _SHARED["bases"]:
         search = _ClipSearch(clip, basis, transform, settings.error_cm, settings.dead_zone)
         step, band = search.pick(scale, near=band, guess=step)
         scale = search.measured_scale(step, band, scale)
-        sizes.append(len(search.code(search.step_for(band, scale, guess=step), band).payload()))
-    return sizes, scale
+        step = search.step_for(band, scale, guess=step)
+        estimates.append((len(search.code(step, band).payload()), (step, band, scale)))
+    return estimates
 
 
 @dataclass
@@ -204,7 +207,7 @@ def _code_clip(index: int) -> ClassCoding:
     settings, clip, transform, basis = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
 
     def coded_at(target: float) -> ClassCoding:
-        coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, _SHARED["scales"][index])
+        coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, _SHARED["starts"][index])
         return ClassCoding(coding.coded.payload(), *achieved(clip, coding.check, bounds), coding.twists)
 
     bounds = Bounds.of(settings)
@@ -237,7 +240,7 @@ class ClipCoding:
 
 
 def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None,
-              proxy_scale: float | None = None) -> ClipCoding:
+              start: tuple[float, float, float] | None = None) -> ClipCoding:
     """The smallest coding of this clip within `target`, verified on every frame.
 
     Two knobs are searched: the quantiser step, and the band, the share of the temporal
@@ -246,9 +249,10 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
     isolated and expensive to code, so a narrower band is often smaller overall.
 
     The searches run on `proxy.CodingProxy` times a factor, the ratio of true to proxy error
-    last measured (`proxy_scale`, e.g. from another basis for the same clip; 1 at first), and
-    true end-to-end scores only calibrate and verify (`_ClipSearch`): a few per clip instead of
-    one per step tried. The coding returned has been checked on every frame as written
+    last measured (1 at first), and true end-to-end scores only calibrate and verify
+    (`_ClipSearch`): a few per clip instead of one per step tried. `start` (step, band, factor),
+    from the estimate that chose this basis (`_estimated_sizes`), replaces the first band
+    search. The coding returned has been checked on every frame as written
     (`LoadedClip.final_check`).
 
     `split` (R, P, T shares) forces the root track's share of the budget and keeps the whole
@@ -258,7 +262,7 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
     search = _ClipSearch(clip, basis, transform, target, dz)
     if split and search.root_coef is not None:
         return search.split(split)
-    return search.smallest(proxy_scale or 1.0)
+    return search.smallest(*(start[2], start[:2]) if start else (1.0, None))
 
 
 class _ClipSearch:
@@ -357,11 +361,12 @@ class _ClipSearch:
         measured, predicted = self.sampled_error(coded), self.proxy(coded.pose_step, coded.root_step, band)
         return measured / predicted if measured > 0 and predicted > 0 else scale
 
-    def smallest(self, scale: float) -> ClipCoding:
-        """The band and step by the proxy, then calibrated (`calibrate`). The proxy's error differs a
-        little between bands, so the band is chosen again if the factor moved, and narrower bands
-        (which the proxy slightly overstates) are tried on true scores while they come out smaller."""
-        step, band = self.pick(scale)
+    def smallest(self, scale: float, start: tuple[float, float] | None = None) -> ClipCoding:
+        """The band and step by the proxy (or `start`), then calibrated (`calibrate`). The proxy's
+        error differs a little between bands, so the band is chosen again if the factor moved, and
+        narrower bands (which the proxy slightly overstates) are tried on true scores while they
+        come out smaller."""
+        step, band = start or self.pick(scale)
         best = self.calibrate(step, band, scale)
         if abs(best.proxy_scale / scale - 1) > BAND_RESCALE:
             step, other = self.pick(best.proxy_scale)
