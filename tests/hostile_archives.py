@@ -246,6 +246,10 @@ def cases(watched: Path) -> list[Case]:
                   "meta: clips[1].repaired[0]"))
     c.append(Case("repaired_error_negative", "lossy", _set("clips.1.repaired.0", [1, 448, -1]),
                   "meta: clips[1].repaired[0]"))
+    c.append(Case("repaired_run_backwards", "lossy", _set("clips.1.repaired.0", [448, 1, 1.0]),
+                  "meta: clips[1].repaired[0]"))
+    c.append(Case("repaired_run_past_the_clip", "lossy", _set("clips.1.repaired.0", [1, 449, 1.0]),
+                  "meta: clips[1].repaired[0]"))
     c.append(Case("contact_error_zero", "lossy", _set("settings.contact_error_cm", 0), "meta: settings.contact_error_cm"))
     # 5. Meta that is well formed but inconsistent.
     c.append(Case("two_clips_one_path", "lossy", _set("clips.1.path", "09_01.amc"), "meta: clips[1].path"))

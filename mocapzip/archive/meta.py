@@ -133,6 +133,13 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
 )}  # draft 4: an "integer" is one in the JSON text too (later drafts also take 5.0)
 
 
+# Fields a format version added: an older archive carrying one is refused, as that version's readers did.
+ADDED_IN = {
+    5: (("settings", "max_error_cm"), ("clips", "p99_error_cm"), ("clips", "patched_frames")),
+    6: (("settings", "contact_error_cm"), ("settings", "repair_glitches"), ("clips", "repaired")),
+}
+
+
 @functools.cache
 def _schema_check():
     return fastjsonschema.compile(SCHEMA)
@@ -147,9 +154,9 @@ def parse_json(data: bytes):
     return json.loads(data, parse_constant=_refuse_constant)
 
 
-def validate(meta, stream_names: list[str], archive_path: str) -> dict[str, tuple[str, int]]:
-    """Check `meta` against the schema and every rule between its fields (ArchiveError if one
-    fails); return every file a full decompress writes (`_output_files`)."""
+def validate(meta, stream_names: list[str], archive_path: str, format_version: int) -> dict[str, tuple[str, int]]:
+    """Check `meta` of a `format_version` archive against the schema and every rule between its
+    fields (ArchiveError if one fails); return every file a full decompress writes (`_output_files`)."""
 
     def fail(field: str, problem: str) -> ArchiveError:
         return ArchiveError(f"meta: {field}: {problem}", archive_path)
@@ -160,6 +167,13 @@ def validate(meta, stream_names: list[str], archive_path: str) -> dict[str, tupl
         field = exc.name.removeprefix("data").lstrip(".") or "(top level)"
         raise fail(field, exc.message.removeprefix(exc.name).strip()) from None
     settings = meta["settings"]
+    for version, fields in ADDED_IN.items():
+        for part, name in fields if format_version < version else ():
+            rows = [settings] if part == "settings" else meta["clips"]
+            where = next((i for i, row in enumerate(rows) if name in row), None)
+            if where is not None:
+                field = f"settings.{name}" if part == "settings" else f"clips[{where}].{name}"
+                raise fail(field, f"format {version} on; this archive is format {format_version}")
     transform = settings["transform"]
     if transform["id"] == "dwt" and transform["wavelet"] not in pywt.wavelist(kind="discrete"):
         raise fail("settings.transform.wavelet", f"unknown wavelet {transform['wavelet'][:40]!r}")
@@ -207,6 +221,11 @@ def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: 
             "".join(row[field]).encode(encoding)
         except UnicodeEncodeError:
             raise fail(f"{where}.{field}", f"not encodable as {encoding}") from None
+    last_frame = row["first_frame"] + row["frames"] - 1
+    for n, (first, last, _) in enumerate(row.get("repaired", [])):
+        if not row["first_frame"] <= first <= last <= last_frame:
+            raise fail(f"{where}.repaired[{n}]", f"frames {first}-{last} are not a run within the clip's "
+                                                 f"{row['first_frame']}-{last_frame}")
     for bone, edges in row.get("twist_flips", {}).items():
         if len(edges) % 2 or any(b <= a for a, b in zip(edges, edges[1:])) or (edges and edges[-1] > row["frames"]):
             raise fail(f"{where}.twist_flips", f"ranges of {bone[:40]!r} are not increasing pairs within the clip")

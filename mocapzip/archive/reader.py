@@ -48,7 +48,7 @@ class Archive:
         try:
             self.meta = self._json("meta")
             # every file a full decompress writes, each path checked to stay inside the output folder
-            self.files = validate_meta(self.meta, self._reader.names(), self.path)
+            self.files = validate_meta(self.meta, self._reader.names(), self.path, self.format_version)
             self._skeleton_texts = self._skeletons()
             version = self.format_version
             # fields older formats did not have, as those formats meant them

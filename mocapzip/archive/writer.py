@@ -33,7 +33,7 @@ from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator
 from mocapzip.formats.amc import Motion
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.mcz import ArchiveWriter
+from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveWriter
 from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
@@ -123,7 +123,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         order = ["meta", "skeletons", *sorted(writer.names)]
         skeleton_texts = [read_regular_file(p).decode("latin-1") for p in skeleton_paths]
         # Checked as every reader checks them: compress never writes an archive a reader refuses.
-        validate_meta(meta, order, os.fspath(output))
+        validate_meta(meta, order, os.fspath(output), FORMAT_VERSION)
         for name, value in (("meta", meta), ("skeletons", skeleton_texts)):
             text = json.dumps(value, sort_keys=name == "meta").encode()
             if len(text) > MAX_DECODED_STREAM_BYTES:

@@ -1,0 +1,45 @@
+"""A field a format version added is refused in an archive of an older version, as that
+version's readers refused it (`meta.ADDED_IN`), and accepted from its version on."""
+
+from __future__ import annotations
+
+import copy
+import re
+from pathlib import Path
+
+import pytest
+
+from mocapzip.archive import Archive
+from mocapzip.archive.meta import ADDED_IN, validate
+from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError
+
+GOLDEN = Path(__file__).parent / "golden"
+EXAMPLES = {"max_error_cm": 10.0, "p99_error_cm": 1.0, "patched_frames": 1, "contact_error_cm": 2.0,
+            "repair_glitches": True, "repaired": [[1, 1, 1.0]]}
+
+
+def with_field(meta: dict, part: str, name: str) -> dict:
+    meta = copy.deepcopy(meta)
+    (meta["settings"] if part == "settings" else meta["clips"][0])[name] = EXAMPLES[name]
+    return meta
+
+
+@pytest.mark.parametrize("version", range(1, FORMAT_VERSION + 1))
+def test_each_golden_archive_meets_the_rules_of_its_version(version):
+    with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
+        assert validate(archive.meta, archive._reader.names(), "x.mcz", version)
+
+
+@pytest.mark.parametrize("added, part, name", [(v, p, n) for v, fields in ADDED_IN.items() for p, n in fields])
+@pytest.mark.parametrize("version", range(4, FORMAT_VERSION + 1))
+def test_a_field_is_refused_before_the_version_that_added_it(version, added, part, name):
+    with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
+        meta, names = with_field(archive.meta, part, name), archive._reader.names()
+    if name == "patched_frames":
+        names = [*names, "patch/00000"]
+    if version < added:
+        field = f"settings.{name}" if part == "settings" else f"clips[0].{name}"
+        with pytest.raises(ArchiveError, match=re.escape(f"meta: {field}: format {added} on")):
+            validate(meta, names, "x.mcz", version)
+    else:
+        validate(meta, names, "x.mcz", version)
