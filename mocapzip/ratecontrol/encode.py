@@ -41,6 +41,7 @@ ROOT_STEP_RATIO = 0.2
 
 
 SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), denser below 2,048 frames; the final check all
+ESTIMATE_FRAMES = 64  # the estimates that choose a basis sample every 8th frame down to 512 frames, 64 frames below
 PCA_SHARES = (0.3, 0.5, 0.7)  # candidate shares of the budget for PCA; the rest goes to quantisation
 STEP_RANGE = (1e-4, 1e3)  # quantiser steps searched, in cm-equivalent units
 BANDS = (1.0, 0.2, 0.16, 0.13, 0.11, 0.095, 0.08, 0.07, 0.06, 0.05, 0.043, 0.036, 0.03, 0.025, 0.02)  # kept shares
@@ -174,7 +175,7 @@ def _estimated_sizes(index: int) -> list[tuple[int, tuple[float, float, float]]]
     settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
     estimates, scale, step, band = [], 1.0, None, None
     for basis in _SHARED["bases"]:
-        search = _ClipSearch(clip, basis, transform, settings.error_cm, settings.dead_zone)
+        search = _ClipSearch(clip, basis, transform, settings.error_cm, settings.dead_zone, ESTIMATE_FRAMES)
         step, band = search.pick(scale, near=band, guess=step)
         scale = search.measured_scale(step, band, scale)
         step = search.step_for(band, scale, guess=step)
@@ -268,13 +269,14 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
 class _ClipSearch:
     """One clip against one basis: its coefficients, codings of them, and their scores."""
 
-    def __init__(self, clip, basis: ClassBasis, transform, target: float, dz: float):
+    def __init__(self, clip, basis: ClassBasis, transform, target: float, dz: float, sampled_frames: int = 256):
         self.clip, self.basis, self.transform, self.target, self.dz = clip, basis, transform, target, dz
         self.n = clip.motion.n_frames
         self.projected = basis.project(clip.poses)
         self.pose_coef = transform.forward(self.projected)
         self.root_coef = None if clip.root is None else transform.forward(scale_root(clip.root))
-        self.sample = slice(None, None, max(1, min(SEARCH_STRIDE, self.n // 256)))  # short clips: every frame
+        # every SEARCH_STRIDE-th frame, denser in short clips to keep `sampled_frames` (under that: every frame)
+        self.sample = slice(None, None, max(1, min(SEARCH_STRIDE, self.n // sampled_frames)))
         self.checks = 0
 
     def code(self, step: float, band: float = 1.0, root_step: float | None = None) -> CodedClip:
