@@ -11,8 +11,8 @@ from mocapzip.codec.clip_stream import reconstruct
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.inputs.clip import load_clips
 from mocapzip.inputs.discover import find_clips
-from mocapzip.ratecontrol.encode import (BANDS, MAX_CALIBRATIONS, MAX_TRUNCATION_SHARE, STEP_RANGE,
-                                         _smallest_near_band, _smallest_over_bands, code_clip)
+from mocapzip.ratecontrol.encode import (BANDS, COARSER_BASES, MAX_CALIBRATIONS, MAX_TRUNCATION_SHARE, STEP_RANGE,
+                                         _smallest_near_band, _smallest_over_bands, code_clip, encode_class)
 from mocapzip.stages import get_stage
 
 
@@ -56,6 +56,21 @@ def test_a_start_from_the_estimates_replaces_the_first_band_search(subject):
         coding = code_clip(clip, basis, transform, 1.0, settings.dead_zone, start=start)
         assert 0.95 <= coding.error[0] <= 1.0, (start, coding.error)
         assert coding.checks <= 3 * MAX_CALIBRATIONS
+
+
+def test_a_class_of_one_short_clip_stores_its_basis_coarser(subject):
+    """One short clip cannot earn back a finely stored basis: the class tries it coarser, and the
+    coarser basis it keeps still lets the clip meet its target."""
+    settings, clips, _ = subject
+    clip = min(clips, key=lambda c: c.motion.n_frames)
+    transform = get_stage("transform", settings.transform)
+    basis, codings = encode_class([clip], transform, settings)
+    accumulator = CovarianceAccumulator(clip.poses.shape[1])
+    accumulator.add(clip.poses)
+    variances = PcaBasis.fit(accumulator).variances[: basis.q]
+    ratios = basis.steps / ClassBasis.steps_for(variances, settings.error_cm, settings.basis_precision)
+    assert any(ratios == pytest.approx(m, rel=1e-6) for m in COARSER_BASES), ratios
+    assert codings[0].achieved.mean <= settings.error_cm
 
 
 class _Sized:

@@ -57,6 +57,8 @@ PROXY_CLOSE = 0.01  # ... or stop at a step whose proxy error is within 1 % unde
 BAND_RESCALE = 0.03  # a proxy factor this far from the one the band was chosen with: choose it again
 NARROWER_TRIAL = 1.06  # a narrower band whose proxy coding is at most this much larger is tried on true scores
 CANDIDATE_MARGIN = 0.01  # of the bases estimated within 1 % of the smallest, the one with most components is coded
+COARSER_BASIS_SHARE = 0.25  # a chosen basis over this share of its class's estimated bytes is also tried coarser ...
+COARSER_BASES = (2, 4)  # ... at these multiples of settings.basis_precision
 BRACKET = 0.01  # steps 1 % apart, one meeting the target and one not: the search is done
 
 
@@ -82,9 +84,13 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
     (as before) gave, on the shared CMU set, 67 B less at 1 cm, the same bytes at 0.5 cm, and
     28 % more codings. `settings.split` forces one split instead.
 
+    A basis is stored at `settings.basis_precision`. One that would take more than
+    COARSER_BASIS_SHARE of its class's estimated bytes (a class of few or short clips) is also
+    estimated at COARSER_BASES times coarser, and the smallest estimate is coded.
+
     `clips` may load each clip when indexed (`clip.ClipsOnDemand`): a class need not fit in
-    memory. Each clip is indexed once for the component search, once for the estimates and
-    once to be coded (again only if the basis must be stored finer); `accumulator`, the
+    memory. Each clip is indexed once for the component search, once or twice for the
+    estimates and once to be coded (again only if the basis must be stored finer); `accumulator`, the
     class's weighted poses when the caller has already summed them, saves one more pass.
     """
     if accumulator is None:
@@ -105,15 +111,20 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         # Shares that need the same component count get the same basis: estimate it once.
         counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
         candidates = [basis_of(q, settings.basis_precision) for q in counts]
-        _SHARED["starts"] = [None] * len(clips)
-        basis = candidates[0]
+        basis, total, _SHARED["starts"] = candidates[0], None, [None] * len(clips)
         if len(candidates) > 1:
-            _SHARED["bases"] = candidates
-            estimates = parallel_map(_estimated_sizes, range(len(clips)), jobs)  # per clip and basis: (bytes, start)
-            totals = [len(b.encode()) + sum(clip[i][0] for clip in estimates) for i, b in enumerate(candidates)]
+            totals, starts = _estimated(candidates, jobs)
             near = [i for i, total in enumerate(totals) if total <= (1 + CANDIDATE_MARGIN) * min(totals)]
             chosen = max(near, key=lambda i: candidates[i].q)
-            basis, _SHARED["starts"] = candidates[chosen], [clip[chosen][1] for clip in estimates]
+            basis, total, _SHARED["starts"] = candidates[chosen], totals[chosen], starts[chosen]
+        if total is None or len(basis.encode()) > COARSER_BASIS_SHARE * total:
+            # a basis that is much of its class's bytes (few or short clips) may pay to be stored coarser
+            trials = [basis_of(basis.q, settings.basis_precision * m) for m in COARSER_BASES]
+            totals, starts = _estimated(trials if total is not None else [basis, *trials], jobs)
+            if total is not None:
+                totals, starts = [total, *totals], [_SHARED["starts"], *starts]
+            chosen = totals.index(min(totals))
+            basis, _SHARED["starts"] = [basis, *trials][chosen], starts[chosen]
         basis, codings = _coded_with(basis, basis_of, clips, target, settings, jobs)
     finally:
         _SHARED.clear()
@@ -135,6 +146,15 @@ def _coded_with(basis: ClassBasis, basis_of, clips, target: float, settings, job
     raise TargetError(f"no coding met {target:g} cm (this clip reached {worst:.4f} cm): the target is "
                       "finer than the precision of the clip's numbers allows; use a larger -e, or --lossless",
                       clips[index].source.amc)
+
+
+def _estimated(bases: list[ClassBasis], jobs: int) -> tuple[list[int], list[list]]:
+    """Per basis, the class's estimated bytes (the basis and every clip, `_estimated_sizes`) and
+    each clip's start for `code_clip`."""
+    _SHARED["bases"] = bases
+    estimates = parallel_map(_estimated_sizes, range(len(_SHARED["clips"])), jobs)  # per clip and basis: (bytes, start)
+    totals = [len(b.encode()) + sum(clip[i][0] for clip in estimates) for i, b in enumerate(bases)]
+    return totals, [[clip[i][1] for clip in estimates] for i in range(len(bases))]
 
 
 def _components_for_shares(index: int) -> list[int]:
