@@ -20,7 +20,8 @@ def test_quantise_is_the_documented_formula(shape, step, dead_zone):
     bin edges and signed zeros included."""
     rng = np.random.default_rng(len(shape))
     x = rng.normal(scale=50 * step, size=shape)
-    edges = (np.arange(x.size) % 40 - 20 + 0.5 + dead_zone) * step  # values at the thresholds
+    k = np.arange(x.size) % 40 - 20
+    edges = np.sign(k) * (np.abs(k) + 0.5 + dead_zone) * step  # values at the thresholds, both signs
     x = np.where(rng.random(shape) < 0.3, edges.reshape(shape), x)
     x.reshape(-1)[:2] = [0.0, -0.0] if x.size >= 2 else x.reshape(-1)[:2]
     expected = (np.sign(x) * np.maximum(np.floor(np.abs(x) / step + 0.5 - dead_zone), 0.0)).astype(np.int64)

@@ -47,13 +47,14 @@ def test_each_clip_lands_just_under_its_target_with_few_true_scores(subject, tar
 
 
 def test_a_start_from_the_estimates_replaces_the_first_band_search(subject):
-    """`start` (step, band, factor) is where the search begins: from a poor start (the whole band,
-    a step far too coarse) the clip still lands just under its target, verified on every frame."""
+    """`start` (step, band) is where the search begins: from a poor start (the whole band and a step
+    far too coarse, or a narrow band, a step far too fine and a factor far off) the clip still lands
+    just under its target, verified on every frame."""
     settings, clips, basis = subject
     transform = get_stage("transform", settings.transform)
     clip = clips[0]
-    for start in [(30.0, 1.0, 1.0), (0.01, BANDS[-3], 2.0)]:
-        coding = code_clip(clip, basis, transform, 1.0, settings.dead_zone, start=start)
+    for start, scale in [((30.0, 1.0), 1.0), ((0.01, BANDS[-3]), 2.0)]:
+        coding = code_clip(clip, basis, transform, 1.0, settings.dead_zone, start=start, proxy_scale=scale)
         assert 0.95 <= coding.error[0] <= 1.0, (start, coding.error)
         assert coding.checks <= 3 * MAX_CALIBRATIONS
 

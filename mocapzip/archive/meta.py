@@ -135,6 +135,8 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
 
 # Fields a format version added: an older archive carrying one is refused, as that version's readers did.
 ADDED_IN = {
+    2: (("settings", "coefficient_coder"),),
+    4: (("settings", "axes_from_positions"), ("clips", "twist_flips")),
     5: (("settings", "max_error_cm"), ("clips", "p99_error_cm"), ("clips", "patched_frames")),
     6: (("settings", "contact_error_cm"), ("settings", "repair_glitches"), ("clips", "repaired")),
 }

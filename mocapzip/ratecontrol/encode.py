@@ -110,31 +110,30 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         needed = np.array(parallel_map(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
         # Shares that need the same component count get the same basis: estimate it once.
         counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
-        candidates = [basis_of(q, settings.basis_precision) for q in counts]
-        basis, total, _SHARED["starts"] = candidates[0], None, [None] * len(clips)
-        if len(candidates) > 1:
+        precision = settings.basis_precision
+        candidates = [basis_of(q, precision) for q in counts]
+        basis, _SHARED["starts"] = candidates[0], [None] * len(clips)
+        if not settings.split:  # a forced split codes on end-to-end scores alone: nothing to estimate
             totals, starts = _estimated(candidates, jobs)
             near = [i for i, total in enumerate(totals) if total <= (1 + CANDIDATE_MARGIN) * min(totals)]
             chosen = max(near, key=lambda i: candidates[i].q)
             basis, total, _SHARED["starts"] = candidates[chosen], totals[chosen], starts[chosen]
-        if total is None or len(basis.encode()) > COARSER_BASIS_SHARE * total:
-            # a basis that is much of its class's bytes (few or short clips) may pay to be stored coarser
-            trials = [basis_of(basis.q, settings.basis_precision * m) for m in COARSER_BASES]
-            totals, starts = _estimated(trials if total is not None else [basis, *trials], jobs)
-            if total is not None:
-                totals, starts = [total, *totals], [_SHARED["starts"], *starts]
-            chosen = totals.index(min(totals))
-            basis, _SHARED["starts"] = [basis, *trials][chosen], starts[chosen]
-        basis, codings = _coded_with(basis, basis_of, clips, target, settings, jobs)
+            if len(basis.encode()) > COARSER_BASIS_SHARE * total:
+                # a basis that is much of its class's bytes (few or short clips) may pay to be stored coarser
+                trials = [(precision * m, basis_of(basis.q, precision * m)) for m in COARSER_BASES]
+                totals, starts = _estimated([b for _, b in trials], jobs)
+                for (coarser, trial), trial_total, trial_starts in zip(trials, totals, starts):
+                    if trial_total < total:
+                        precision, basis, total, _SHARED["starts"] = coarser, trial, trial_total, trial_starts
+        basis, codings = _coded_with(basis, precision, basis_of, clips, target, settings, jobs)
     finally:
         _SHARED.clear()
     return basis, codings
 
 
-def _coded_with(basis: ClassBasis, basis_of, clips, target: float, settings, jobs: int):
-    """(basis, per clip its `ClassCoding`): every clip coded with `basis`, stored finer
-    (`basis_of(q, precision)`) while some clip cannot meet the target because of its rounding."""
-    precision = settings.basis_precision
+def _coded_with(basis: ClassBasis, precision: float, basis_of, clips, target: float, settings, jobs: int):
+    """(basis, per clip its `ClassCoding`): every clip coded with `basis` (stored at `precision`),
+    stored finer (`basis_of(q, precision)`) while some clip cannot meet the target because of its rounding."""
     for _ in range(BASIS_REFINEMENTS):
         _SHARED["basis"] = basis
         codings = parallel_map(_code_clip, range(len(clips)), jobs)
@@ -226,9 +225,11 @@ def _code_clip(index: int) -> ClassCoding:
     (settings.max_error_cm, contact_error_cm), at the mean aim that needs the fewest bytes with
     its patches (`max_error.smallest_within`)."""
     settings, clip, transform, basis = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
+    step, band, scale = _SHARED["starts"][index] or (None, None, None)
 
     def coded_at(target: float) -> ClassCoding:
-        coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, _SHARED["starts"][index])
+        start = (step, band) if target == settings.error_cm and step is not None else None  # what was estimated
+        coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, start, scale)
         return ClassCoding(coding.coded.payload(), *achieved(clip, coding.check, bounds), coding.twists)
 
     bounds = Bounds.of(settings)
@@ -261,7 +262,7 @@ class ClipCoding:
 
 
 def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, split=None,
-              start: tuple[float, float, float] | None = None) -> ClipCoding:
+              start: tuple[float, float] | None = None, proxy_scale: float | None = None) -> ClipCoding:
     """The smallest coding of this clip within `target`, verified on every frame.
 
     Two knobs are searched: the quantiser step, and the band, the share of the temporal
@@ -270,11 +271,11 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
     isolated and expensive to code, so a narrower band is often smaller overall.
 
     The searches run on `proxy.CodingProxy` times a factor, the ratio of true to proxy error
-    last measured (1 at first), and true end-to-end scores only calibrate and verify
-    (`_ClipSearch`): a few per clip instead of one per step tried. `start` (step, band, factor),
-    from the estimate that chose this basis (`_estimated_sizes`), replaces the first band
-    search. The coding returned has been checked on every frame as written
-    (`LoadedClip.final_check`).
+    last measured (`proxy_scale`, e.g. by the estimate that chose this basis; 1 at first), and
+    true end-to-end scores only calibrate and verify (`_ClipSearch`): a few per clip instead of
+    one per step tried. `start` (step, band), the estimate's for this target
+    (`_estimated_sizes`), replaces the first band search. The coding returned has been checked
+    on every frame as written (`LoadedClip.final_check`).
 
     `split` (R, P, T shares) forces the root track's share of the budget and keeps the whole
     band (the thesis's experiments; searched on end-to-end scores); otherwise the root step is
@@ -283,7 +284,7 @@ def code_clip(clip, basis: ClassBasis, transform, target: float, dz: float, spli
     search = _ClipSearch(clip, basis, transform, target, dz)
     if split and search.root_coef is not None:
         return search.split(split)
-    return search.smallest(*(start[2], start[:2]) if start else (1.0, None))
+    return search.smallest(proxy_scale or 1.0, start)
 
 
 class _ClipSearch:

@@ -62,7 +62,7 @@ def mean_joint_error(error: np.ndarray, columns: slice, root: np.ndarray | None 
     moves each joint by the translation (`to_character`, frames x 3 x 3, turns it into the
     character frame) plus the heading error times the joint's `lever` (frames x joints x 3),
     and counts as one more joint, the root's own translation. With no position columns
-    (channels), one size per frame: the norm of the whole error.
+    (channels, which have no root track), one size per frame: the norm of the whole error.
     """
     if root is None:
         root, to_character, lever = _NO_ROOT
@@ -100,7 +100,7 @@ def _mean_joint_error(error, start, stop, root, to_character, lever):
                 size += v * v
             total += math.sqrt(size)
     count = frames * max(joints, 1) + (frames if with_root and joints > 0 else 0)
-    return total / count
+    return total / count if count else math.nan
 
 
 class CodingProxy:
