@@ -5,7 +5,9 @@
 Runs, in order: speed.py (compress and decompress of the shared CMU set beside xz and zstd, cold
 and warm, -j 1 and -j 2: first, while the machine is quietest), ratio_distortion.py (the whole
 shared CMU set and the curves), speed_memory.py (largest clips, BLAS threads, bounded memory; the
-whole-set speed comes from the previous run) and thesis_tables.py (tables 4.1 to 4.4). Every number on the page comes from these runs; the page
+whole-set speed comes from the previous run), small_sets.py and one_clip.py (fixed costs: sets of
+a few clips per subject, and one clip per archive against Hou et al.) and thesis_tables.py
+(tables 4.1 to 4.4). Every number on the page comes from these runs; the page
 records the command, the git commit and this run's own output.
 """
 
@@ -31,10 +33,14 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(HERE))
 
+import one_clip  # noqa: E402
 import ratio_distortion  # noqa: E402
+import small_sets  # noqa: E402
 import speed  # noqa: E402
 import speed_memory  # noqa: E402
 import thesis_tables  # noqa: E402
+from mocapzip.archive import Settings  # noqa: E402
+from mocapzip.classes import by_name  # noqa: E402
 from mocapzip.cli.choices import MAX_TO_MEAN  # noqa: E402
 
 
@@ -85,6 +91,12 @@ def main(argv=None) -> int:
     rd = ratio_distortion.run(data, args.work, args.docs, args.jobs, log, quick=args.quick)
     log("== speed and memory")
     sm = speed_memory.run(data, args.work, rd["whole"], args.jobs, log, quick=args.quick)
+    log("== fixed costs: small sets, and one clip per archive")
+    runs = [(classes, by_name.POOL_FRAMES, Settings().basis_precision)
+            for classes in (("pooled",) if args.quick else ("pooled", "subject", "single"))]
+    fc = {"small_sets": small_sets.run(runs, args.jobs, show=log, data=data / "cmu"),
+          "one_clip": one_clip.run(data, args.jobs, limit=4 if args.quick else None)}
+    log(fc["one_clip"])
     log("== thesis tables 4.1 to 4.4")
     tt = thesis_tables.run_tables(data, args.jobs, log, quick=args.quick)
     (args.work / "thesis_tables.json").write_text(json.dumps(tt, indent=1) + "\n")
@@ -100,13 +112,13 @@ def main(argv=None) -> int:
 
     command = "python benchmarks/make_docs.py" + ("" if argv is None and len(sys.argv) == 1 else
                                                   " " + shlex.join(sys.argv[1:] if argv is None else argv))
-    page = render(command, git, elapsed, rd, sm, sp, tt, head, RULES, log_lines, data)
+    page = render(command, git, elapsed, rd, sm, sp, tt, fc, head, RULES, log_lines, data)
     (args.docs / "benchmarks.md").write_text(page)
     print(f"wrote {args.docs / 'benchmarks.md'}", file=sys.stderr)
     return 0
 
 
-def render(command, git, elapsed, rd, sm, sp, tt, head, rules, log_lines, data) -> str:
+def render(command, git, elapsed, rd, sm, sp, tt, fc, head, rules, log_lines, data) -> str:
     whole = rd["whole"]
     env = whole["environment"]
     commit = git["commit"] if git else "unknown"
@@ -163,6 +175,12 @@ def render(command, git, elapsed, rd, sm, sp, tt, head, rules, log_lines, data) 
             ratio_distortion.markdown(rd, Path("docs"))]
     out += ["## (c) Speed and peak memory", "", "**Speed table** (`python benchmarks/speed.py`)", "",
             speed.markdown(sp), "", speed_memory.markdown(sm)]
+    out += ["## (d) Fixed costs: small sets, and one clip per archive", "",
+            "What an archive pays however few frames it holds (skeletons, class bases, meta, priors, container; "
+            "[fixed_costs.md](fixed_costs.md)). Sets of links into the shared CMU set, at 1 cm "
+            "(`python benchmarks/small_sets.py --classes pooled,subject,single`):", "",
+            *fc["small_sets"], "", "Every CMU clip under 1,000 frames, each compressed alone, against Hou et al. coding "
+            "it alone (`python benchmarks/one_clip.py`):", "", fc["one_clip"], ""]
     out += ["## Output of the run", "", "```", *log_lines, "```", ""]
     return "\n".join(out)
 

@@ -65,6 +65,33 @@ def bench_one(job: tuple[Path, float]) -> dict:
             "fixed": sum(fixed[k] for k in FIXED), **{k: fixed[k] for k in FIXED}}
 
 
+def run(data: Path = DATA, jobs: int = 2, error: float = 1.0, max_frames: int = 1000, limit: int | None = None,
+        per_clip: bool = False) -> str:
+    """The markdown report: the command, the mcz / Hou table, the median fixed costs (and the rows)."""
+    clips = short_clips(data, max_frames)[:limit]
+    with ProcessPoolExecutor(jobs) as pool:
+        rows = list(pool.map(bench_one, [(amc, error) for amc, _ in clips]))
+    if not rows:
+        return f"No CMU clip under {max_frames:,} frames in {data}."
+    ratio = np.array([row["mcz"] / row["hou"] for row in rows])
+    motion = np.array([(row["mcz"] - sum(row[k] for k in NOT_IN_HOU)) / row["hou"] for row in rows])
+    worst = rows[int(np.argmax(ratio))]
+    out = [f"`python benchmarks/one_clip.py -j {jobs} -e {error:g} --max-frames {max_frames}` "
+           f"({os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the end): {len(rows)} CMU clips "
+           f"under {max_frames:,} frames ({sum(row['frames'] for row in rows):,} frames), each in an archive of its own.",
+           "", "| mcz / Hou per clip | median | worst | mcz smaller in |", "|---|---:|---:|---:|",
+           f"| whole archive | {np.median(ratio):.3f} | {ratio.max():.3f} ({worst['clip']}) | {(ratio < 1).sum()} of {len(rows)} |",
+           f"| without skeleton, meta, priors, container | {np.median(motion):.3f} | {motion.max():.3f} | "
+           f"{(motion < 1).sum()} of {len(rows)} |", "",
+           "Median bytes per archive: " + ", ".join(
+               f"{k} {np.median([row[k] for row in rows]):,.0f}" for k in (*FIXED, "fixed", "mcz", "hou")) + "."]
+    if per_clip:
+        out += ["", "| clip | frames | mcz B | Hou B | mcz / Hou | fixed B |", "|---|---:|---:|---:|---:|---:|"]
+        out += [f"| {row['clip']} | {row['frames']:,} | {row['mcz']:,} | {row['hou']:,} | {r:.3f} | {row['fixed']:,} |"
+                for row, r in zip(rows, ratio)]
+    return "\n".join(out)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("-j", "--jobs", type=int, default=2, help="clips benched at once")
@@ -73,26 +100,7 @@ def main(argv=None) -> None:
     parser.add_argument("--limit", type=int, help="only the first N clips (a quick look)")
     parser.add_argument("--per-clip", action="store_true", help="also print one row per clip")
     args = parser.parse_args(argv)
-    clips = short_clips(DATA, args.max_frames)[: args.limit]
-    with ProcessPoolExecutor(args.jobs) as pool:
-        rows = list(pool.map(bench_one, [(amc, args.error) for amc, _ in clips]))
-    ratio = np.array([row["mcz"] / row["hou"] for row in rows])
-    motion = np.array([(row["mcz"] - sum(row[k] for k in NOT_IN_HOU)) / row["hou"] for row in rows])
-    worst = rows[int(np.argmax(ratio))]
-    print(f"`python benchmarks/one_clip.py -j {args.jobs} -e {args.error:g} --max-frames {args.max_frames}` "
-          f"({os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the end): {len(rows)} CMU clips "
-          f"under {args.max_frames:,} frames ({sum(row['frames'] for row in rows):,} frames), each in an archive of its own.\n")
-    print("| mcz / Hou per clip | median | worst | mcz smaller in |")
-    print("|---|---:|---:|---:|")
-    print(f"| whole archive | {np.median(ratio):.3f} | {ratio.max():.3f} ({worst['clip']}) | {(ratio < 1).sum()} of {len(rows)} |")
-    print(f"| without skeleton, meta, priors, container | {np.median(motion):.3f} | {motion.max():.3f} | {(motion < 1).sum()} of {len(rows)} |")
-    print("\nMedian bytes per archive: " + ", ".join(
-        f"{k} {np.median([row[k] for row in rows]):,.0f}" for k in (*FIXED, "fixed", "mcz", "hou")) + ".")
-    if args.per_clip:
-        print("\n| clip | frames | mcz B | Hou B | mcz / Hou | fixed B |")
-        print("|---|---:|---:|---:|---:|---:|")
-        for row, r in zip(rows, ratio):
-            print(f"| {row['clip']} | {row['frames']:,} | {row['mcz']:,} | {row['hou']:,} | {r:.3f} | {row['fixed']:,} |")
+    print(run(DATA, args.jobs, args.error, args.max_frames, args.limit, args.per_clip))
 
 
 if __name__ == "__main__":

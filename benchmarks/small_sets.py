@@ -36,15 +36,58 @@ from mocapzip.cli.choices import max_error_cm  # noqa: E402
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "cmu"
 
 
-def linked_subset(root: Path, per_subject: int | None) -> Path:
+def linked_subset(root: Path, per_subject: int | None, data: Path = DATA) -> Path:
     """A folder under `root` of links to each CMU subject's ASF and its first `per_subject` AMCs (None: all)."""
     out = root / f"first_{per_subject or 'all'}"
-    for subject in sorted(p for p in DATA.iterdir() if p.is_dir()):
+    for subject in sorted(p for p in data.iterdir() if p.is_dir()):
         (out / subject.name).mkdir(parents=True)
         amcs = sorted(subject.glob("*.amc"))[:per_subject]
         for path in [*subject.glob("*.asf"), *amcs]:
             os.symlink(path, out / subject.name / path.name)
     return out
+
+
+def run(runs: list[tuple[str, int, float]], jobs: int = 2, error: float = 1.0, show=print,
+        data: Path = DATA) -> list[str]:
+    """One markdown row per set and run, each (classes, pool threshold, basis precision), shown as
+    it comes; returns the table (header included)."""
+    variants = {field: len({run[k] for run in runs}) > 1 for k, field in ((1, "pool"), (2, "precision"))}
+    rows = ["| set | clips | subjects | frames | --classes | bytes/frame | skeletons | bases | meta | priors | "
+            "container | fixed share | clip streams and patches | seconds |",
+            "|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for row in rows:
+        show(row)
+    default_pool = by_name.POOL_FRAMES
+    with tempfile.TemporaryDirectory() as work:
+        try:
+            for per_subject in (1, 2, None):
+                inputs = linked_subset(Path(work), per_subject, data)
+                for classes, pool_frames, precision in runs:
+                    by_name.POOL_FRAMES = pool_frames
+                    path = Path(work) / "set.mcz"
+                    started = time.perf_counter()
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")  # glitches and a clip cut short: said by compress, not here
+                        settings = Settings(classes=classes, error_cm=error, max_error_cm=max_error_cm(None, error),
+                                            basis_precision=precision)
+                        summary = compress([inputs], path, settings, jobs=jobs, force=True)
+                    seconds = time.perf_counter() - started
+                    with Archive(path) as archive:
+                        fixed = fixed_costs(archive.stream_sizes(), summary["output_bytes"])
+                        subjects = len(archive.meta["skeletons"])
+                    total = sum(fixed.values())
+                    name = f"first {per_subject} per subject" if per_subject else "whole shared set"
+                    variant = (f" ({pool_frames:,})" if variants["pool"] else "") + \
+                        (f" ({precision:g})" if variants["precision"] else "")
+                    rows.append(f"| {name} | {summary['clips']} | {subjects} | {summary['frames']:,} | {classes}{variant} | "
+                                f"{summary['bytes_per_frame']:.3f} | {fixed['skeletons']:,} | {fixed['bases']:,} | "
+                                f"{fixed['meta']:,} | {fixed['priors']:,} | {fixed['container']:,} | "
+                                f"{total / summary['output_bytes']:.0%} | {summary['output_bytes'] - total:,} | "
+                                f"{seconds:.0f} |")
+                    show(rows[-1])
+        finally:
+            by_name.POOL_FRAMES = default_pool
+    return rows
 
 
 def main(argv=None) -> None:
@@ -67,33 +110,7 @@ def main(argv=None) -> None:
                       if value)
     print(f"`python benchmarks/small_sets.py -j {args.jobs}{options}` ({os.cpu_count()} CPUs, "
           f"load average {os.getloadavg()[0]:.1f} at start).\n")
-    print("| set | clips | subjects | frames | --classes | bytes/frame | skeletons | bases | meta | priors | "
-          "container | fixed share | clip streams and patches | seconds |")
-    print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    with tempfile.TemporaryDirectory() as work:
-        for per_subject in (1, 2, None):
-            inputs = linked_subset(Path(work), per_subject)
-            for classes, pool_frames, precision in runs:
-                by_name.POOL_FRAMES = pool_frames
-                path = Path(work) / "set.mcz"
-                started = time.perf_counter()
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")  # glitches and a clip cut short: said by compress, not here
-                    settings = Settings(classes=classes, error_cm=args.error, max_error_cm=max_error_cm(None, args.error),
-                                        basis_precision=precision)
-                    summary = compress([inputs], path, settings, jobs=args.jobs, force=True)
-                seconds = time.perf_counter() - started
-                with Archive(path) as archive:
-                    fixed = fixed_costs(archive.stream_sizes(), summary["output_bytes"])
-                    subjects = len(archive.meta["skeletons"])
-                total = sum(fixed.values())
-                name = f"first {per_subject} per subject" if per_subject else "whole shared set"
-                variant = f" ({pool_frames:,})" if args.pool_frames else (f" ({precision:g})" if args.basis_precision else "")
-                print(f"| {name} | {summary['clips']} | {subjects} | {summary['frames']:,} | {classes}{variant} | "
-                      f"{summary['bytes_per_frame']:.3f} | {fixed['skeletons']:,} | {fixed['bases']:,} | "
-                      f"{fixed['meta']:,} | {fixed['priors']:,} | {fixed['container']:,} | "
-                      f"{total / summary['output_bytes']:.0%} | {summary['output_bytes'] - total:,} | {seconds:.0f} |",
-                      flush=True)
+    run(runs, args.jobs, args.error, show=lambda row: print(row, flush=True))
 
 
 if __name__ == "__main__":
