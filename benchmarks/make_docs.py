@@ -84,9 +84,9 @@ def main(argv=None) -> int:
         "used a cache of its own)")
     with tempfile.TemporaryDirectory() as warm:
         clip = data / "cmu" / "07" / "07_01.amc"
-        for argv in (speed.mcz("compress", str(clip), "-o", f"{warm}/w.mcz", "-q"),
-                     speed.mcz("decompress", f"{warm}/w.mcz", "-o", f"{warm}/out", "-q")):
-            subprocess.run(argv, check=True)
+        for warm_up in (speed.mcz("compress", str(clip), "-o", f"{warm}/w.mcz", "-q"),
+                        speed.mcz("decompress", f"{warm}/w.mcz", "-o", f"{warm}/out", "-q")):
+            subprocess.run(warm_up, check=True)
     log("== ratio and distortion: whole shared CMU set, and curves")
     rd = ratio_distortion.run(data, args.work, args.docs, args.jobs, log, quick=args.quick)
     log("== speed and memory")
