@@ -69,4 +69,3 @@ def _quantise(x, step, dead_zone, out):
         magnitude = max(math.floor(levels + 0.5 - dead_zone), 0.0)
         out[i] = int(magnitude) if x[i] > 0 else -int(magnitude)
     return True
-

@@ -367,16 +367,13 @@ class _ClipSearch:
     def pick(self, scale: float, near: float | None = None, guess: float | None = None) -> tuple[float, float]:
         """(step, band) of the smallest coding whose predicted error meets the aim; only bands next
         to `near` (the band another basis picked for the clip, at step `guess`) if given."""
-        def code(step: float, band: float) -> CodedClip:
-            return self.code(step, band)
-
         def error(step: float, band: float) -> float:
             return self.predicted(step, band, scale)
 
         target = CALIBRATION_AIM * self.target
         if near is None:
-            return _smallest_over_bands(code, error, target)
-        return _smallest_near_band(code, error, target, BANDS.index(near), guess)
+            return _smallest_over_bands(self.code, error, target)
+        return _smallest_near_band(self.code, error, target, BANDS.index(near), guess)
 
     def measured_scale(self, step: float, band: float, scale: float) -> float:
         """The proxy factor measured by one end-to-end score (sampled) of the coding at `step`, `band`."""
@@ -400,7 +397,7 @@ class _ClipSearch:
         index = BANDS.index(band)
         while index + 1 < len(BANDS) and best.error[0] <= self.target:
             narrower, scale = BANDS[index + 1], best.proxy_scale
-            if self.predicted(STEP_RANGE[0], narrower, scale) > MAX_TRUNCATION_SHARE * self.target:
+            if not _admissible(lambda step, band: self.predicted(step, band, scale), self.target, narrower):
                 break
             step = self.step_for(narrower, scale)
             if len(self.code(step, narrower).payload()) > NARROWER_TRIAL * best.size:
@@ -465,18 +462,29 @@ class _ClipSearch:
         return self.tightened(coding, band)
 
 
+def _admissible(error, target: float, band: float) -> bool:
+    """Whether dropping the top of `band` alone (the finest step) leaves the quantiser enough of
+    the budget: at most MAX_TRUNCATION_SHARE of `target` (cheap to score, so such bands are
+    never step-searched)."""
+    return error(STEP_RANGE[0], band) <= MAX_TRUNCATION_SHARE * target
+
+
+def _sized_step(code, error, target: float, band: float, guess: float | None, low: float = STEP_RANGE[0],
+                high: float = STEP_RANGE[1]) -> tuple[float, int] | None:
+    """(step, bytes) of the coarsest step in [low, high] whose `error` at `band` meets `target`,
+    or None if even `low` misses."""
+    step, err = largest_step(lambda s: error(s, band), target, low, high, rel_tol=STEP_TOLERANCE, guess=guess,
+                             close=PROXY_CLOSE)
+    return None if err > target else (step, len(code(step, band).payload()))
+
+
 def _smallest_near_band(code, error, target: float, start: int, guess: float) -> tuple[float, float]:
     """`_smallest_over_bands` as a local search from BANDS[start]: narrower bands, then wider
     ones, while each comes out smaller. A clip's best band follows its motion more than its
     basis, so the band another basis picked is a close start: two or three bands are tried
     instead of the whole sweep."""
-    def tried(i: int, guess: float) -> tuple[int, float] | None:
-        """(bytes, step) at BANDS[i], or None if the band cannot meet the target."""
-        if error(STEP_RANGE[0], BANDS[i]) > MAX_TRUNCATION_SHARE * target:
-            return None
-        step, err = largest_step(lambda s: error(s, BANDS[i]), target, *STEP_RANGE, rel_tol=STEP_TOLERANCE,
-                                 guess=guess, close=PROXY_CLOSE)
-        return None if err > target else (len(code(step, BANDS[i]).payload()), step)
+    def tried(i: int, guess: float) -> tuple[float, int] | None:
+        return _sized_step(code, error, target, BANDS[i], guess) if _admissible(error, target, BANDS[i]) else None
 
     best = tried(start, guess)
     if best is None:
@@ -485,46 +493,39 @@ def _smallest_near_band(code, error, target: float, start: int, guess: float) ->
     for direction in (1, -1):  # narrower, then (if that did not pay) wider
         i = start + direction
         while 0 <= i < len(BANDS):
-            candidate = tried(i, best[1])
-            if candidate is None or candidate[0] >= best[0]:
+            candidate = tried(i, best[0])
+            if candidate is None or candidate[1] >= best[1]:
                 break
             best, index, i = candidate, i, i + direction
         if index != start:
             break
-    return best[1], BANDS[index]
+    return best[0], BANDS[index]
 
 
 def _smallest_over_bands(code, error, target: float) -> tuple[float, float]:
     """(step, band) of the smallest coding whose `error` is within `target` (see code_clip);
     `code` and `error` take (step, band).
 
-    The error of dropping a band's top alone (finest step) is cheap to score, so bands whose
-    truncation takes more than MAX_TRUNCATION_SHARE of the budget are never step-searched.
-    Sizes fall as the band narrows until the step must shrink fast, so the search starts at
-    the narrowest admissible band and widens while the size keeps falling.
+    Bands whose truncation alone takes too much of the budget are never step-searched
+    (`_admissible`). Sizes fall as the band narrows until the step must shrink fast, so the
+    search starts at the narrowest admissible band and widens while the size keeps falling.
     """
-    finest = STEP_RANGE[0]
-
-    def admissible(i: int) -> bool:
-        return error(finest, BANDS[i]) <= MAX_TRUNCATION_SHARE * target
-
     # BANDS narrow as i grows and the truncation error grows with them; BANDS[0] keeps everything
     widest, narrowest = 0, len(BANDS) - 1
-    if not admissible(narrowest):
+    if not _admissible(error, target, BANDS[narrowest]):
         while narrowest - widest > 1:
             middle = (widest + narrowest) // 2
-            widest, narrowest = (middle, narrowest) if admissible(middle) else (widest, middle)
+            widest, narrowest = (middle, narrowest) if _admissible(error, target, BANDS[middle]) else (widest, middle)
         narrowest = widest
     best, best_size = None, None
     low, high, guess = *STEP_RANGE, STEP_GUESS * target
     for band in BANDS[narrowest::-1]:
-        step, err = largest_step(lambda s: error(s, band), target, low, high, rel_tol=STEP_TOLERANCE, guess=guess,
-                                 close=PROXY_CLOSE)
-        if err > target:
+        sized = _sized_step(code, error, target, band, guess, low, high)
+        if sized is None:
             break
-        size = len(code(step, band).payload())
+        step, size = sized
         if best is not None and size >= best_size:
             break
         best, best_size = (step, band), size
         low, high, guess = step, step * 8, step * 1.25  # a wider band allows a coarser step
-    return best if best is not None else (finest, 1.0)
+    return best if best is not None else (STEP_RANGE[0], 1.0)

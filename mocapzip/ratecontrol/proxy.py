@@ -134,7 +134,8 @@ class CodingProxy:
             # d/d(angle) of the rotation about +Y at 0 (axis_rotation at 90 degrees, minus its fixed axis)
             turn = axis_rotation("y", np.pi / 2) - np.diag([0.0, 1.0, 0.0])
             self._lever = local[frames] @ turn
-            self._to_character = np.swapaxes(axis_rotation("y", heading[frames]), -1, -2)
+            # contiguous once here, not copied by `mean_joint_error` on every call
+            self._to_character = np.ascontiguousarray(np.swapaxes(axis_rotation("y", heading[frames]), -1, -2))
         self._coef = pose_coef if root_coef is None else np.hstack([pose_coef, root_coef])
         n_measured = len(range(*frames.indices(self.n_frames)))
         fast = scipy.fft.next_fast_len(self.n_frames, real=True) == self.n_frames
