@@ -1,8 +1,11 @@
 """The .mcz container: named, checksummed byte streams in one HDF5 file (spec: docs/format.md).
 
 The container knows nothing about motion capture; the codec decides what the streams mean.
-All payloads live back to back in ONE uint8 dataset (an HDF5 object costs ~650 bytes, so one
-object per stream would dwarf small streams), described by one zstd-compressed JSON index.
+All payloads live back to back in ONE uint8 dataset (an HDF5 object costs hundreds of bytes,
+so one object per stream would dwarf small streams), described by a JSON index that stock HDF5
+tools print (`h5dump -a index`): stream names, lengths and CRC32s, readable without mocapzip.
+Format 7 holds the index in a root attribute; formats 1 to 6 held it zstd-compressed in a second
+dataset, and `ArchiveReader` still reads that layout (`_legacy_index`), never writes it.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from contextlib import contextmanager
 import h5py
 import numpy as np
 import zstandard
-from h5py import h5d, h5t
+from h5py import h5d, h5t, h5z
 
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 from mocapzip.formats.errors import MocapFormatError
@@ -30,13 +33,19 @@ from mocapzip.formats.text import open_regular_file
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
 
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 MAGIC = "MCZ mocapzip archive"
 _WRITE_BATCH = 1 << 20  # one h5py write per small stream costs ~50 us; batch them instead
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-_ATTRIBUTES = ("magic", "format_version", "tool_version", "index_crc32", "header_crc32")
-_INDEX_KEYS = ("names", "offsets", "lengths", "crc32")
-# The index is a zstd-coded stream like any other: its stored bytes and its JSON obey the same limit.
+_ATTRIBUTES = ("magic", "format_version", "index", "index_crc32")
+# An index up to this size is a root attribute; a larger one a deflated dataset, which costs ~260
+# bytes more of HDF5 structure but compresses the index about 2.5x (measured crossover: ~450 bytes).
+INDEX_ATTRIBUTE_BYTES = 512
+_INDEX_KEYS = ("tool", "names", "lengths", "crc32")
+# Formats 1 to 6: five root attributes and the index as a zstd-coded dataset.
+_LEGACY_ATTRIBUTES = ("magic", "format_version", "tool_version", "index_crc32", "header_crc32")
+_LEGACY_INDEX_KEYS = ("names", "offsets", "lengths", "crc32")
+# The index obeys the limit of every decoded stream (formats 1 to 6: stored and unpacked).
 MAX_INDEX_BYTES = MAX_DECODED_STREAM_BYTES
 
 
@@ -44,8 +53,8 @@ class ArchiveError(MocapFormatError):
     """A damaged or invalid archive; the message starts with the section: header, index or stream."""
 
 
-def _header_crc(format_version: int, tool_version: str, index_crc32: int) -> int:
-    """CRC32 over the header attributes, so a flipped byte in tool_version is not silently returned."""
+def _legacy_header_crc(format_version: int, tool_version: str, index_crc32: int) -> int:
+    """Formats 1 to 6: CRC32 over the header attributes (format 7 keeps tool_version in the index)."""
     return zlib.crc32(f"{MAGIC}\n{format_version}\n{tool_version}\n{index_crc32}".encode())
 
 
@@ -229,28 +238,26 @@ def _write_hdf5(file: _HDF5Output, streams: Mapping[str, bytes | SpooledStream],
             _check_stream(name, value)
         values = [value if isinstance(value, SpooledStream) else memoryview(value).cast("B") for _, value in items]
         lengths = [len(v) for v in values]
-        offsets = [0, *itertools.accumulate(lengths)]
         index_doc = {
+            "tool": tool_version,
             "names": [name for name, _ in items],
-            "offsets": offsets[:-1],
             "lengths": lengths,
             "crc32": [v.crc32 if isinstance(v, SpooledStream) else zlib.crc32(v) for v in values],
         }
-        index_json = json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode()
-        if len(index_json) > MAX_INDEX_BYTES:  # readers refuse it: never write it
+        index = json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode()
+        if len(index) > MAX_INDEX_BYTES:  # readers refuse it: never write it
             raise ValueError(f"the index of {len(items)} streams exceeds {MAX_INDEX_BYTES} bytes")
-        index = zstandard.ZstdCompressor(level=19).compress(index_json)
-        index_crc32 = zlib.crc32(index)
-        tool_bytes = tool_version.encode()
 
         f.attrs.create("magic", np.bytes_(MAGIC.encode()))
         f.attrs.create("format_version", np.uint32(FORMAT_VERSION))
-        f.attrs.create("tool_version", np.bytes_(tool_bytes), dtype=h5py.string_dtype("utf-8", len(tool_bytes)))
-        f.attrs.create("index_crc32", np.uint32(index_crc32))
-        f.attrs.create("header_crc32", np.uint32(_header_crc(FORMAT_VERSION, tool_version, index_crc32)))
-        index_ds = f.create_dataset("index", shape=(len(index),), dtype=np.uint8, track_times=False)
-        payload_ds = f.create_dataset("payload", shape=(offsets[-1],), dtype=np.uint8, track_times=False)
-        index_ds[:] = np.frombuffer(index, np.uint8)
+        text = h5py.string_dtype("utf-8", len(index))
+        if len(index) <= INDEX_ATTRIBUTE_BYTES:
+            f.attrs.create("index", np.bytes_(index), dtype=text)
+        else:  # one element, one chunk, deflated: h5dump still prints it as text
+            f.create_dataset("index", shape=(1,), dtype=text, chunks=(1,), compression="gzip", compression_opts=9,
+                             track_times=False)[0] = np.bytes_(index)
+        f.attrs.create("index_crc32", np.uint32(zlib.crc32(index)))
+        payload_ds = f.create_dataset("payload", shape=(sum(lengths),), dtype=np.uint8, track_times=False)
         _write_payload(payload_ds, values)
 
 
@@ -295,6 +302,22 @@ def _dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
     offset = ds.id.get_offset()  # None: no storage allocated
     if ds.shape[0] and (offset is None or offset + ds.shape[0] > file_size):  # also bounds any allocation
         return f"has {ds.shape[0]} bytes, not stored within the file's {file_size}"
+    return None
+
+
+def _index_dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
+    """What, if anything, makes the index dataset other than one element in one chunk, deflated.
+
+    Deflate is built into every HDF5, so no plugin is ever loaded; the size of what it inflates
+    to is the element's, checked by `ArchiveReader._index` before it is read.
+    """
+    plist = ds.id.get_create_plist()
+    if plist.get_layout() != h5d.CHUNKED or ds.shape != (1,) or ds.chunks != (1,):
+        return "is not one element in one chunk"
+    if plist.get_nfilters() != 1 or plist.get_filter(0)[0] != h5z.FILTER_DEFLATE:
+        return "is not compressed by deflate alone"
+    if plist.get_external_count() or ds.attrs:
+        return "has external storage or attributes"
     return None
 
 
@@ -363,12 +386,84 @@ class ArchiveReader:
                     f"header: archive format_version {self.format_version} is newer than this mocapzip "
                     f"supports (up to {FORMAT_VERSION}); upgrade mocapzip to read it"
                 )
-            index_ds, payload_ds = self._datasets(file_size)
-            tool_version, index_crc32, header_crc32 = (f.attrs[key] for key in _ATTRIBUTES[2:])
+        if self.format_version >= 7:
+            if "index" in f.attrs:  # names only: nothing is read yet
+                payload_ds = self._datasets(file_size, _ATTRIBUTES, ("payload",))["payload"]
+                self._names, lengths, crcs = self._index(f.attrs.get_id("index"), lambda: f.attrs["index"])
+            else:
+                datasets = self._datasets(file_size, tuple(a for a in _ATTRIBUTES if a != "index"), ("index", "payload"))
+                payload_ds, index_ds = datasets["payload"], datasets["index"]
+                self._names, lengths, crcs = self._index(index_ds.id, lambda: index_ds[0])
+        else:
+            datasets = self._datasets(file_size, _LEGACY_ATTRIBUTES, ("index", "payload"))
+            payload_ds = datasets["payload"]
+            self._names, lengths, crcs = self._legacy_index(datasets["index"])
+        starts = [0, *itertools.accumulate(lengths)]
+        self._entries = dict(zip(self._names, zip(starts, lengths, crcs)))
+        if starts[-1] != payload_ds.shape[0]:
+            raise self._error(f"index: streams need {starts[-1]} bytes, payload has {payload_ds.shape[0]}")
+        self._payload = payload_ds
+
+    def _datasets(self, file_size: int, attributes: tuple[str, ...], items: tuple[str, ...]) -> dict[str, h5py.Dataset]:
+        """The root's datasets `items`, once the root is found to hold nothing the format does not define.
+
+        Checked before any data is read: HDF5 can take a dataset's bytes from other files (external
+        storage, virtual datasets, external links), which may be a FIFO or /dev/zero, and decode
+        them with filters (plugins); `read` relies on `payload` being one contiguous run of this file.
+        """
+        f = self._file
+        with _section(self.path, "header"):
+            for kind, present, expected in (("attribute", f.attrs, attributes), ("item", f, items)):
+                odd = sorted(set(present) ^ set(expected))  # names only: listing no link resolves it
+                if odd:
+                    state = "missing" if odd[0] in expected else "not in the format"
+                    raise self._error(f"header: root {kind} {odd[0]!r} is {state}")
+            datasets = {}
+            for name in items:
+                link = f.get(name, getlink=True)
+                if not isinstance(link, h5py.HardLink):  # resolving a soft or external link could open any file
+                    raise self._error(f"header: {name} is not a dataset but a link ({type(link).__name__})")
+                ds = f[name]
+                check = _index_dataset_problem if name == "index" and self.format_version >= 7 else _dataset_problem
+                problem = "is not a dataset" if not isinstance(ds, h5py.Dataset) else check(ds, file_size)
+                if problem:
+                    raise self._error(f"header: {name} {problem}")
+                datasets[name] = ds
+        return datasets
+
+    def _index(self, stored, read) -> tuple[list[str], list[int], list[int]]:
+        """Format 7: the index (UTF-8 JSON) from `read()`, once its HDF5 object `stored` (the attribute,
+        or the dataset `_index_dataset_problem` passed) is found to be one fixed-length string within
+        the limit; checked against index_crc32. Sets `tool_version`."""
+        f = self._file
+        with _section(self.path, "index"):
+            kind = stored.get_type()
+            if kind.get_class() != h5t.STRING or kind.is_variable_str() or stored.shape not in ((), (1,)):
+                raise self._error("index: not one fixed-length string")
+            if kind.get_size() > MAX_INDEX_BYTES:
+                raise self._error(f"index: {kind.get_size()} bytes stored, more than the limit of {MAX_INDEX_BYTES}")
+            crc = f.attrs["index_crc32"]
+            index = bytes(read())
+            if not isinstance(crc, np.integer) or zlib.crc32(index) != crc:
+                raise self._error("index: CRC32 mismatch")
+            doc = json.loads(index)
+        if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
+            raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}")
+        tool = doc["tool"]
+        if not isinstance(tool, str) or not tool or "\0" in tool:
+            raise self._error("index: tool must be a non-empty string without NUL")
+        self.tool_version = tool
+        return self._index_columns(doc, _INDEX_KEYS[1:])
+
+    def _legacy_index(self, index_ds: h5py.Dataset) -> tuple[list[str], list[int], list[int]]:
+        """Formats 1 to 6: the zstd-coded index dataset, and the header CRC over the root attributes."""
+        f = self._file
+        with _section(self.path, "header"):
+            tool_version, index_crc32, header_crc32 = (f.attrs[key] for key in _LEGACY_ATTRIBUTES[2:])
             if not isinstance(tool_version, bytes):
                 raise self._error(f"header: tool_version is {type(tool_version).__name__}, not a string")
             self.tool_version = tool_version.decode()
-            if _header_crc(self.format_version, self.tool_version, index_crc32) != header_crc32:
+            if _legacy_header_crc(self.format_version, self.tool_version, index_crc32) != header_crc32:
                 raise self._error("header: CRC32 mismatch in the root attributes")
         with _section(self.path, "index"):
             if index_ds.shape[0] > MAX_INDEX_BYTES:
@@ -382,54 +477,28 @@ class ArchiveReader:
             if size > MAX_INDEX_BYTES:
                 raise self._error(f"index: unpacks to {size} bytes, more than the limit of {MAX_INDEX_BYTES}")
             doc = json.loads(zstandard.ZstdDecompressor().decompress(index, allow_extra_data=False))
-            self._names, offsets, lengths, crcs = self._index_columns(doc)
-            self._entries = dict(zip(self._names, zip(offsets, lengths, crcs)))
-            starts = [0, *itertools.accumulate(lengths)]
-            if starts[:-1] != offsets:
-                raise self._error("index: streams are not stored back to back")
-            if starts[-1] != payload_ds.shape[0]:
-                raise self._error(f"index: streams need {starts[-1]} bytes, payload has {payload_ds.shape[0]}")
-        self._payload = payload_ds
+        if not isinstance(doc, dict) or sorted(doc) != sorted(_LEGACY_INDEX_KEYS):
+            raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_LEGACY_INDEX_KEYS)}")
+        names, offsets, lengths, crcs = self._index_columns(doc, _LEGACY_INDEX_KEYS)
+        if [0, *itertools.accumulate(lengths)][:-1] != offsets:
+            raise self._error("index: streams are not stored back to back")
+        return names, lengths, crcs
 
-    def _datasets(self, file_size: int) -> tuple[h5py.Dataset, h5py.Dataset]:
-        """Datasets `index` and `payload`, once the root is found to hold nothing the format does not define.
-
-        Checked before any data is read: HDF5 can take a dataset's bytes from other files (external
-        storage, virtual datasets, external links), which may be a FIFO or /dev/zero, and decode
-        them with filters (plugins); `read` relies on `payload` being one contiguous run of this file.
-        """
-        f = self._file
-        for kind, present, expected in (("attribute", f.attrs, _ATTRIBUTES), ("item", f, ("index", "payload"))):
-            odd = sorted(set(present) ^ set(expected))  # names only: listing no link resolves it
-            if odd:
-                state = "missing" if odd[0] in expected else "not in the format"
-                raise self._error(f"header: root {kind} {odd[0]!r} is {state}")
-        datasets = []
-        for name in ("index", "payload"):
-            link = f.get(name, getlink=True)
-            if not isinstance(link, h5py.HardLink):  # resolving a soft or external link could open any file
-                raise self._error(f"header: {name} is not a dataset but a link ({type(link).__name__})")
-            ds = f[name]
-            problem = "is not a dataset" if not isinstance(ds, h5py.Dataset) else _dataset_problem(ds, file_size)
-            if problem:
-                raise self._error(f"header: {name} {problem}")
-            datasets.append(ds)
-        return datasets[0], datasets[1]
-
-    def _index_columns(self, doc) -> tuple[list[str], list[int], list[int], list[int]]:
-        """The index's four columns, once their types are checked (a damaged index must not raise TypeError)."""
-        if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
-            raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}")
-        names, offsets, lengths, crcs = columns = [doc[key] for key in _INDEX_KEYS]
+    def _index_columns(self, doc: dict, keys: tuple[str, ...]) -> list[list]:
+        """The index's columns `keys` (names first, crc32 last), once their types are checked (a
+        damaged index must not raise TypeError)."""
+        columns = [doc[key] for key in keys]
+        names, crcs = columns[0], columns[-1]
         if not all(isinstance(column, list) and len(column) == len(names) for column in columns):
-            raise self._error(f"index: {', '.join(_INDEX_KEYS)} must be lists of equal length")
+            raise self._error(f"index: {', '.join(keys)} must be lists of equal length")
         if not all(isinstance(name, str) and name for name in names) or len(set(names)) != len(names):
             raise self._error("index: stream names must be unique non-empty strings")
-        if not all(type(n) is int and n >= 0 for n in offsets + lengths):
-            raise self._error("index: offsets and lengths must be non-negative integers")
+        counts = [n for column in columns[1:-1] for n in column]
+        if not all(type(n) is int and n >= 0 for n in counts):
+            raise self._error(f"index: {' and '.join(keys[1:-1])} must be non-negative integers")
         if not all(type(crc) is int and 0 <= crc < 1 << 32 for crc in crcs):
             raise self._error("index: crc32 values must be integers from 0 to 2**32 - 1")
-        return names, offsets, lengths, crcs
+        return columns
 
     def names(self) -> list[str]:
         """Stream names in stored order."""

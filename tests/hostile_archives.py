@@ -25,14 +25,15 @@ import zstandard
 import limited
 from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.codec.clip_stream import CodedClip
+from mocapzip.archive.dictionaries import dictionary
 from mocapzip.codec.entropy.coefficients import Priors, encode_matrices
 from mocapzip.codec.patches import FramePatches
 from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"
 # the newest format; two clips, 09_01 (148 frames, 62 values, 25 of them patched) and 64_01
-BASES = {"lossy": GOLDEN / "lossy_v6.mcz", "lossless": GOLDEN / "lossless_v6.mcz"}
-BASE_PATCHED = 31  # the lossy base's clip 0 (09_01): its row's patched_frames
+BASES = {"lossy": GOLDEN / "lossy_v7.mcz", "lossless": GOLDEN / "lossless_v7.mcz"}
+BASE_PATCHED = 45  # the lossy base's clip 0 (09_01): its row's patched_frames
 MEMORY_LIMIT = 1 << 30  # address space of each child: far below what any bomb here would take
 COMMANDS = (("test", "-q"), ("info", "--json"), ("decompress", "-q", "-o"))
 
@@ -142,8 +143,18 @@ def _wide_basis() -> bytes:
     return struct.pack("<II", len(zeros), 1) + np.ones(1, "<f4").tobytes() + encode_matrices([zeros] * 3)
 
 
+def _meta_stream(text: bytes) -> bytes:
+    """A `meta` stream holding `text`, as format 7 codes it (zstd with the meta dictionary)."""
+    return entropy.encode_bytes(text, dictionary("meta.json"))
+
+
 def _json_stream(value) -> bytes:
-    return entropy.encode_bytes(json.dumps(value).encode())
+    return _meta_stream(json.dumps(value).encode())
+
+
+def _skeletons_stream(texts: list[bytes]) -> bytes:
+    """A `skeletons` stream of these ASF texts, as format 7 codes it (packed, zstd with the ASF dictionary)."""
+    return entropy.encode_bytes(entropy.pack_blobs(texts), dictionary("asf.txt"))
 
 
 def _symlink_outside(out: Path) -> None:
@@ -217,10 +228,10 @@ def cases(watched: Path) -> list[Case]:
          "meta: clips[0].segments"),
     ):
         c.append(Case(f"meta_{label}", "lossy", edit, section))
-    c.append(Case("meta_nested_200000_deep", "lossy", _stream("meta", entropy.encode_bytes(b"[" * 200_000 + b"]" * 200_000)),
+    c.append(Case("meta_nested_200000_deep", "lossy", _stream("meta", _meta_stream(b"[" * 200_000 + b"]" * 200_000)),
                   "meta"))
-    c.append(Case("meta_nan", "lossy", _stream("meta", entropy.encode_bytes(b'{"error_cm": NaN}')), "meta"))
-    c.append(Case("meta_not_json", "lossy", _stream("meta", entropy.encode_bytes(b"\xff{")), "meta"))
+    c.append(Case("meta_nan", "lossy", _stream("meta", _meta_stream(b'{"error_cm": NaN}')), "meta"))
+    c.append(Case("meta_not_json", "lossy", _stream("meta", _meta_stream(b"\xff{")), "meta"))
     c.append(Case("meta_is_a_list", "lossy", _stream("meta", _json_stream([])), "meta: (top level)"))
     c.append(Case("meta_not_zstd", "lossy", _stream("meta", b"{}"), "meta"))
     c.append(Case("bone_not_in_skeleton", "lossy", _set("clips.0.bones.1", "tail"), "clip/00000", decoded=True))
@@ -262,10 +273,11 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("skeletons_stream_missing", "lossless", _stream("skeletons", None), "skeletons: stream missing"))
     c.append(Case("clip_stream_missing", "lossless", _stream("clip/00001", None), "clip/00001: stream missing"))
     c.append(Case("priors_missing", "lossy", _stream("priors", None), "priors: stream missing"))
-    c.append(Case("skeletons_one_short", "lossless", _stream("skeletons", _json_stream(["x"])), "skeletons"))
-    c.append(Case("skeleton_not_latin1", "lossless", _stream("skeletons", _json_stream(["\u20ac", "\u20ac"])),
-                  "skeletons"))
-    c.append(Case("skeleton_not_asf", "lossy", _stream("skeletons", _json_stream(["hello", "hello"])),
+    c.append(Case("skeletons_one_short", "lossless", _stream("skeletons", _skeletons_stream([b"x"])), "skeletons"))
+    c.append(Case("skeletons_packed_wrong", "lossless",
+                  _stream("skeletons", lambda: entropy.encode_bytes(b"\x02\x05\x05hello", dictionary("asf.txt"))),
+                  "skeletons: data too short"))
+    c.append(Case("skeleton_not_asf", "lossy", _stream("skeletons", _skeletons_stream([b"hello", b"hello"])),
                   "skeletons: skeleton 0", decoded=True))
     return c
 
@@ -285,7 +297,7 @@ def build(case: Case, archive: Path) -> None:
     """Write the hostile archive of `case` to `archive` through the project's writer."""
     with ArchiveReader(BASES[case.base]) as reader:
         streams = {name: reader.read(name) for name in reader.names()}
-    meta = json.loads(entropy.decode_bytes(streams["meta"]))
+    meta = json.loads(entropy.decode_bytes(streams["meta"], dictionary=dictionary("meta.json")))
     original_meta = streams["meta"]
     case.edit(meta, streams)
     if "meta" in streams and streams["meta"] == original_meta:  # the edit changed meta's fields

@@ -17,7 +17,12 @@ STREAMS = {
     "names/\u00fcnic\u00f8de \u2713": "payload \u2713".encode(),
 }
 
+# From format 7, an index over INDEX_ATTRIBUTE_BYTES is a deflated dataset, not an attribute.
+MANY_STREAMS = {f"clips/{i:04d}": bytes([i]) * i for i in range(40)}
+
 if __name__ == "__main__":
-    path = Path(__file__).parent / "golden" / f"container_v{FORMAT_VERSION}.mcz"
-    size = write_archive(path, STREAMS, tool_version=f"golden-container-v{FORMAT_VERSION}")
-    print(f"wrote {path} ({size} bytes)")
+    golden = Path(__file__).parent / "golden"
+    for path, streams in ((golden / f"container_v{FORMAT_VERSION}.mcz", STREAMS),
+                          (golden / f"container_v{FORMAT_VERSION}_index_dataset.mcz", MANY_STREAMS)):
+        size = write_archive(path, streams, tool_version=f"golden-container-v{FORMAT_VERSION}")
+        print(f"wrote {path} ({size} bytes)")

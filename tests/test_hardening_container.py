@@ -33,7 +33,7 @@ from click.testing import CliRunner
 
 from mocapzip.cli.main import main
 from mocapzip.formats import MocapFormatError, mcz
-from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader, write_archive
+from mocapzip.formats.mcz import ArchiveError, ArchiveReader, write_archive
 
 MCZ = Path(sys.executable).with_name("mcz")
 TIMEOUT = 30  # seconds; a child that blocks fails the test instead of hanging the suite
@@ -134,12 +134,11 @@ def set_attr(obj, name, value):
 
 
 def delete_attr(f, tmp_path):
-    del f.attrs["header_crc32"]
+    del f.attrs["index_crc32"]
 
 
 HEADER_CASES = {
     "external storage": (external_storage("payload"), "payload is stored in external files"),
-    "external index": (external_storage("index"), "index is stored in external files"),
     "virtual dataset": (virtual_payload, "payload is a virtual dataset"),
     "external link": (external_link, "payload is not a dataset but a link (ExternalLink)"),
     "soft link": (soft_link, "payload is not a dataset but a link (SoftLink)"),
@@ -148,7 +147,9 @@ HEADER_CASES = {
     "extra dataset": (lambda f, tmp_path: f.create_dataset("more", data=PAYLOAD),
                       "root item 'more' is not in the format"),
     "extra attribute": (set_attr("/", "comment", b"hi"), "root attribute 'comment' is not in the format"),
-    "missing attribute": (delete_attr, "root attribute 'header_crc32' is missing"),
+    "missing attribute": (delete_attr, "root attribute 'index_crc32' is missing"),
+    "index dataset of format 6": (lambda f, tmp_path: f.create_dataset("index", data=PAYLOAD),
+                                  "root item 'index' is not in the format"),
     "gzip": (replace_payload(compression="gzip"), "payload is chunked, not contiguous"),
     "shuffle and fletcher32": (replace_payload(shuffle=True, fletcher32=True), "payload is chunked"),
     "chunks": (replace_payload(chunks=(64,)), "payload is chunked"),
@@ -160,21 +161,75 @@ HEADER_CASES = {
     "fill value": (replace_payload(fillvalue=7), "payload has a fill value"),
     "dataset attribute": (set_attr("payload", "note", 1), "payload has attributes"),
     "no storage": (unwritten_payload, "payload has 1124 bytes, not stored within the file"),
+}
+# Formats 1 to 6, read from a copy of the golden container: what their layout adds to check.
+LEGACY_HEADER_CASES = {
+    "external index": (external_storage("index"), "index is stored in external files"),
     "tool_version not a string": (set_attr("/", "tool_version", np.int64(1 << 40)), "tool_version is int64"),
+    "missing attribute": (lambda f, tmp_path: f.attrs.__delitem__("header_crc32"),
+                          "root attribute 'header_crc32' is missing"),
+    "format 7's index attribute": (set_attr("/", "index", b"{}"), "root attribute 'index' is not in the format"),
 }
 
 
-def hostile(tmp_path: Path, edit) -> Path:
-    path = valid_archive(tmp_path)
+def index_dataset(**create):
+    """An edit that stores the index of the many-stream golden container again, created with `create`."""
+
+    def edit(f, tmp_path):
+        text = f["index"][0]
+        del f["index"]
+        options = {"shape": (1,), "dtype": h5py.string_dtype("utf-8", len(text)), **create}
+        f.create_dataset("index", **options)[0] = text
+
+    return edit
+
+
+def index_two_elements(f, tmp_path):
+    text = f["index"][0]
+    del f["index"]
+    f.create_dataset("index", data=[text, text], chunks=(1,), compression="gzip")
+
+
+# Format 7 with the index in a dataset (an index over INDEX_ATTRIBUTE_BYTES), from the golden container.
+INDEX_DATASET_CASES = {
+    "contiguous": (index_dataset(), "index is not one element in one chunk"),
+    "two elements": (index_two_elements, "index is not one element in one chunk"),
+    "shuffle too": (index_dataset(chunks=(1,), compression="gzip", shuffle=True), "index is not compressed by deflate alone"),
+    "lzf": (index_dataset(chunks=(1,), compression="lzf"), "index is not compressed by deflate alone"),
+    "fletcher32": (index_dataset(chunks=(1,), fletcher32=True), "index is not compressed by deflate alone"),
+    "attribute too": (set_attr("/", "index", b"{}"), "root item 'index' is not in the format"),
+    "dataset attribute": (set_attr("index", "note", 1), "index has external storage or attributes"),
+    "soft link": (lambda f, tmp_path: (f.__delitem__("index"), f.__setitem__("index", h5py.SoftLink("/payload"))),
+                  "index is not a dataset but a link (SoftLink)"),
+}
+
+
+def hostile(tmp_path: Path, edit, legacy: bool = False) -> Path:
+    path = valid_archive(tmp_path) if not legacy else legacy_archive(tmp_path)
     with h5py.File(path, "r+") as f:
         edit(f, tmp_path)
     return path
 
 
-@pytest.mark.parametrize("case", HEADER_CASES)
+def legacy_archive(tmp_path: Path) -> Path:
+    path = tmp_path / "v6.mcz"
+    path.write_bytes((Path(__file__).parent / "golden" / "container_v6.mcz").read_bytes())
+    return path
+
+
+@pytest.mark.parametrize("case", [*HEADER_CASES, *(f"format 6: {case}" for case in LEGACY_HEADER_CASES),
+                                  *(f"index dataset: {case}" for case in INDEX_DATASET_CASES)])
 def test_hdf5_features_outside_the_format_are_refused_on_open(tmp_path, case):
-    edit, message = HEADER_CASES[case]
-    path = hostile(tmp_path, edit)
+    legacy = case.startswith("format 6: ")
+    if case.startswith("index dataset: "):
+        edit, message = INDEX_DATASET_CASES[case.removeprefix("index dataset: ")]
+        path = tmp_path / "many.mcz"
+        path.write_bytes((Path(__file__).parent / "golden" / "container_v7_index_dataset.mcz").read_bytes())
+        with h5py.File(path, "r+") as f:
+            edit(f, tmp_path)
+    else:
+        edit, message = LEGACY_HEADER_CASES[case.removeprefix("format 6: ")] if legacy else HEADER_CASES[case]
+        path = hostile(tmp_path, edit, legacy)
     with pytest.raises(ArchiveError) as caught:
         ArchiveReader(path)
     assert caught.value.message.startswith(f"header: {message}"), caught.value.message
@@ -200,13 +255,15 @@ def test_the_golden_files_pass_every_check():
 
 
 def with_index(tmp_path: Path, index: bytes) -> Path:
-    """A valid archive whose index is `index`, with every checksum made to match."""
-    path = valid_archive(tmp_path)
+    """A format-6 archive (the layout whose index is zstd-coded) whose index is `index`, with every
+    checksum made to match."""
+    path = legacy_archive(tmp_path)
     with h5py.File(path, "r+") as f:
         del f["index"]
         f["index"] = np.frombuffer(index, np.uint8)
         f.attrs["index_crc32"] = np.uint32(zlib.crc32(index))
-        f.attrs["header_crc32"] = np.uint32(mcz._header_crc(FORMAT_VERSION, "1", zlib.crc32(index)))
+        tool = f.attrs["tool_version"].decode()
+        f.attrs["header_crc32"] = np.uint32(mcz._legacy_header_crc(6, tool, zlib.crc32(index)))
     return path
 
 
@@ -244,10 +301,11 @@ def test_index_with_bytes_after_its_frame_is_refused(tmp_path):
     assert_index_refused(with_index(tmp_path, index), "damaged or unreadable (ZstdError")
 
 
-def test_stored_index_beyond_the_limit_is_refused_before_it_is_read(tmp_path, monkeypatch):
-    path = valid_archive(tmp_path)
+@pytest.mark.parametrize("legacy", [False, True])
+def test_stored_index_beyond_the_limit_is_refused_before_it_is_read(tmp_path, monkeypatch, legacy):
+    path = legacy_archive(tmp_path) if legacy else valid_archive(tmp_path)
     with h5py.File(path, "r") as f:
-        stored = f["index"].shape[0]
+        stored = f["index"].shape[0] if legacy else f.attrs.get_id("index").get_type().get_size()
     monkeypatch.setattr(mcz, "MAX_INDEX_BYTES", stored - 1)
     assert_index_refused(path, f"{stored} bytes stored, more than the limit of {stored - 1}")
 

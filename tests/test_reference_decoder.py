@@ -24,6 +24,7 @@ import reference_decoder
 from mocapzip.archive import Archive
 from mocapzip.cli.main import main
 from mocapzip.formats.amc import read_amc
+from mocapzip.formats.mcz import ArchiveReader
 
 GOLDEN = Path(__file__).parent / "golden"
 GOLDEN_FILES = sorted(GOLDEN.glob("lossy_v*.mcz")) + sorted(GOLDEN.glob("lossless_v*.mcz"))
@@ -127,3 +128,11 @@ def test_reference_decoder_decodes_every_golden_file(path, tmp_path):
 @pytest.mark.parametrize("label", sorted(FRESH))
 def test_reference_decoder_decodes_fresh_archives(fresh_archives, label, tmp_path):
     check_against_package(fresh_archives[label], tmp_path)
+
+
+@pytest.mark.parametrize("path", sorted(GOLDEN.glob("container_v*.mcz")), ids=lambda p: p.stem)
+def test_reference_container_reads_every_golden_container_as_mocapzip_does(path):
+    with ArchiveReader(path) as ours, reference_decoder.Container(path) as theirs:
+        assert theirs.names == ours.names() and theirs.format_version == ours.format_version
+        assert theirs.tool_version == ours.tool_version
+        assert all(theirs.read(name) == ours.read(name) for name in ours.names())

@@ -18,6 +18,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from mocapzip.archive import legacy
+from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
 from mocapzip.archive.meta import parse_json
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.settings import Settings
@@ -25,7 +26,7 @@ from mocapzip.classes.segment import coded_range, join_decoded
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors, check_matrix_shape
-from mocapzip.codec.entropy.zstd import decode_bytes
+from mocapzip.codec.entropy.zstd import decode_bytes, unpack_blobs
 from mocapzip.codec.patches import FramePatches, channel_steps
 from mocapzip.formats.amc import AmcStyle, Motion, format_amc
 from mocapzip.formats.asf import parse_asf
@@ -76,10 +77,18 @@ class Archive:
 
     def _json(self, name):
         try:
-            return parse_json(decode_bytes(self._reader.read(name)))
+            return parse_json(self._unpacked(name))
+        except (ValueError, RecursionError) as exc:  # also bad UTF-8, bad JSON and JSON nested too deep
+            raise ArchiveError(f"{name}: {exc}", self.path) from exc
+
+    def _unpacked(self, name: str) -> bytes:
+        """Stream `meta` or `skeletons` unzstd'd: with its dictionary from format 7 on."""
+        used = dictionary(STREAM_DICTIONARIES[name]) if self.format_version >= 7 else None
+        try:
+            return decode_bytes(self._reader.read(name), dictionary=used)
         except KeyError:
             raise ArchiveError(f"{name}: stream missing", self.path) from None
-        except (ValueError, RecursionError) as exc:  # also bad UTF-8, bad JSON and JSON nested too deep
+        except ValueError as exc:
             raise ArchiveError(f"{name}: {exc}", self.path) from exc
 
     def __enter__(self):
@@ -94,11 +103,18 @@ class Archive:
 
     def _skeletons(self) -> list[str]:
         """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
-        texts = self._json("skeletons")
+        expected = ArchiveError(f"skeletons: expected {len(self.meta['skeletons'])} ASF texts, as meta lists",
+                                self.path)
+        if self.format_version >= 7:
+            try:
+                texts = [blob.decode("latin-1") for blob in unpack_blobs(self._unpacked("skeletons"))]
+            except ValueError as exc:
+                raise ArchiveError(f"skeletons: {exc}", self.path) from exc
+        else:
+            texts = self._json("skeletons")
         if not (isinstance(texts, list) and len(texts) == len(self.meta["skeletons"])
                 and all(isinstance(t, str) and max(t, default="\0") <= "\xff" for t in texts)):
-            raise ArchiveError(f"skeletons: expected {len(self.meta['skeletons'])} ASF texts, as meta lists",
-                               self.path)
+            raise expected
         return texts
 
     def skeleton_text(self, index: int) -> str:

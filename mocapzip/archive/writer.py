@@ -1,8 +1,8 @@
-"""`mcz compress`: clips on disk -> the streams of one .mcz archive (format 4).
+"""`mcz compress`: clips on disk -> the streams of one .mcz archive (format 7).
 
 Streams (see docs/format.md, "Streams written by the codec"):
-  meta        zstd JSON: settings, skeleton and class tables, one row per clip
-  skeletons   zstd JSON list of the ASF texts, byte for byte (they compress well together)
+  meta        zstd JSON (dictionary meta.json): settings, skeleton and class tables, one row per clip
+  skeletons   zstd of the ASF files, byte for byte, packed (dictionary asf.txt: family templates)
   class/NNNN  a class's quantised PCA mean and basis (lossy mode)
   priors      zstd bytes: where the clip streams' models start (coefficient coder "primed")
   clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
@@ -20,6 +20,7 @@ from contextlib import closing
 from dataclasses import asdict, dataclass, field, replace
 
 from mocapzip import __version__
+from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.settings import Settings, checked
 from mocapzip.classes.auto import auto_classes, parse_auto
@@ -27,7 +28,7 @@ from mocapzip.classes.by_name import class_namer, pooled_classes
 from mocapzip.classes.segment import OVERLAP, coded_range, join_decoded, segment_take
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors
-from mocapzip.codec.entropy.zstd import encode_bytes
+from mocapzip.codec.entropy.zstd import encode_bytes, pack_blobs
 from mocapzip.codec.lossless import encode_channels
 from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator
@@ -121,16 +122,16 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         if skipped:
             meta["skipped"] = skipped
         order = ["meta", "skeletons", *sorted(writer.names)]
-        skeleton_texts = [read_regular_file(p).decode("latin-1") for p in skeleton_paths]
         # Checked as every reader checks them: compress never writes an archive a reader refuses.
         validate_meta(meta, order, os.fspath(output), FORMAT_VERSION)
-        for name, value in (("meta", meta), ("skeletons", skeleton_texts)):
-            text = json.dumps(value, sort_keys=name == "meta").encode()
-            if len(text) > MAX_DECODED_STREAM_BYTES:
-                raise MocapFormatError(f"the archive's {name} would take {len(text):,} bytes, more than the "
+        unpacked = {"meta": json.dumps(meta, sort_keys=True).encode(),
+                    "skeletons": pack_blobs(read_regular_file(p) for p in skeleton_paths)}
+        for name, data in unpacked.items():
+            if len(data) > MAX_DECODED_STREAM_BYTES:
+                raise MocapFormatError(f"the archive's {name} would take {len(data):,} bytes, more than the "
                                        f"{MAX_DECODED_STREAM_BYTES:,} a reader accepts: compress fewer clips at once",
                                        output)
-            writer.add(name, encode_bytes(text))
+            writer.add(name, encode_bytes(data, dictionary(STREAM_DICTIONARIES[name])))
         size = writer.commit(order)
     frames = sum(r["frames"] for r in rows)
     largest_mean = max(r["error_cm"] for r in rows)

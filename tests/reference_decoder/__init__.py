@@ -9,16 +9,16 @@ checks, but it is not hardened against crafted files as mocapzip is.
 """
 
 from . import geometry, lossless, streams
-from .container import Container, read_json
+from .container import Container, read_meta, read_skeletons
 
 
 def decode_archive(path) -> dict:
     """{clip path: float64 (frames, channels) AMC values} for every clip of the archive at `path`."""
     with Container(path) as container:
-        meta = read_json(container.read("meta"))
-        skeletons = read_json(container.read("skeletons"))
-        settings = meta["settings"]
         version = container.format_version
+        meta = read_meta(container.read("meta"), version)
+        skeletons = read_skeletons(container.read("skeletons"), version)
+        settings = meta["settings"]
         if settings.get("lossless", False):
             return {row["path"]: lossless.lossless_channels(container.read(f"clip/{index:05d}"), row, version)
                     for index, row in enumerate(meta["clips"])}

@@ -48,6 +48,7 @@ The zstd contexts are created once per process and reused (creating a level
 not thread safe, so each use holds a lock.
 """
 
+import functools
 import math
 import threading
 import zlib
@@ -97,19 +98,33 @@ _UNPACK_STEP = 1 << 10
 # --------------------------------------------------------------------- bytes
 
 
-def encode_bytes(data: bytes) -> bytes:
-    """Compress a raw byte string into one checksummed zstd frame."""
-    with _COMPRESSOR_LOCK:
-        return _COMPRESSOR.compress(bytes(data))
+def encode_bytes(data: bytes, dictionary: bytes | None = None) -> bytes:
+    """Compress a raw byte string into one checksummed zstd frame, with `dictionary` (raw content
+    that the frame may refer back to, as if it came first: `mocapzip.archive.dictionaries`) if given."""
+    if dictionary is None:
+        with _COMPRESSOR_LOCK:
+            return _COMPRESSOR.compress(bytes(data))
+    compressor, lock = _with_dictionary(dictionary)[0]
+    with lock:
+        return compressor.compress(bytes(data))
 
 
-def decode_bytes(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES) -> bytes:
-    """Inverse of `encode_bytes`; raises ValueError if `blob` is not exactly one intact frame
-    or unpacks to more than `limit` bytes."""
-    data, rest = _decompress_frame(blob, limit)
+def decode_bytes(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES, dictionary: bytes | None = None) -> bytes:
+    """Inverse of `encode_bytes` (with the same `dictionary`); raises ValueError if `blob` is not
+    exactly one intact frame or unpacks to more than `limit` bytes."""
+    data, rest = _decompress_frame(blob, limit, dictionary)
     if rest:
         raise ValueError(f"{len(rest)} unexpected bytes after the zstd frame")
     return data
+
+
+@functools.cache
+def _with_dictionary(dictionary: bytes):
+    """A compressor and a decompressor for one raw-content dictionary, each with its lock: built
+    once per process (preparing the dictionary costs more than a small frame)."""
+    prepared = zstandard.ZstdCompressionDict(dictionary, dict_type=zstandard.DICT_TYPE_RAWCONTENT)
+    return ((zstandard.ZstdCompressor(level=19, write_checksum=True, dict_data=prepared), threading.Lock()),
+            (zstandard.ZstdDecompressor(dict_data=prepared), threading.Lock()))
 
 
 # --------------------------------------------------------------- framing
@@ -270,7 +285,7 @@ def join_leading_bits(lengths: np.ndarray, verbatim: bytes) -> np.ndarray:
 # ------------------------------------------------------------- internals
 
 
-def _decompress_frame(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES):
+def _decompress_frame(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES, dictionary: bytes | None = None):
     """Decompress the zstd frame at the start of `blob`; return (data, bytes after the frame).
 
     A few kilobytes of zstd can unpack to gigabytes: the size the frame header declares is
@@ -286,8 +301,9 @@ def _decompress_frame(blob: bytes, limit: int = MAX_DECODED_STREAM_BYTES):
         if declared > limit:
             raise ValueError(f"zstd stream unpacks to {declared} bytes, more than the limit of {limit}")
         step = len(blob) if declared >= 0 else _UNPACK_STEP
-        with _DECOMPRESSOR_LOCK:
-            stream = _DECOMPRESSOR.decompressobj()
+        decompressor, lock = (_DECOMPRESSOR, _DECOMPRESSOR_LOCK) if dictionary is None else _with_dictionary(dictionary)[1]
+        with lock:
+            stream = decompressor.decompressobj()
             while not stream.eof and position < len(blob):
                 parts.append(stream.decompress(view[position : position + step]))
                 position += step
