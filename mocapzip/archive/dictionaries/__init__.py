@@ -3,8 +3,9 @@
 A one-clip archive spent more on its skeleton (1.5 KB) and meta (0.7 KB) than on its motion:
 zstd has nothing to refer back to in a single small text. These raw-content dictionaries give it
 what every archive's texts share: in one-clip CMU archives (benchmarks/one_clip.py) the median
-skeleton went from 1,488 to 574 B and meta from 696 to 130 B. They are format constants: frozen, checked by their SHA-256, and written once by
-`tests/make_format_dictionaries.py`, which says what they hold and where it came from.
+skeleton went from 1,488 to 574 B and meta from 696 to 130 B. They are format constants: frozen,
+checked by their SHA-256, and written once by `tests/make_format_dictionaries.py`, which says
+what they hold and where it came from.
 """
 
 from __future__ import annotations
