@@ -306,11 +306,8 @@ def _dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
 
 
 def _index_dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
-    """What, if anything, makes the index dataset other than one element in one chunk, deflated.
-
-    Deflate is built into every HDF5, so no plugin is ever loaded; the size of what it inflates
-    to is the element's, checked by `ArchiveReader._index` before it is read.
-    """
+    """What, if anything, makes the index dataset other than one element in one chunk, deflated
+    (the reader inflates it itself: `ArchiveReader._inflated`; `file_size` is checked there)."""
     plist = ds.id.get_create_plist()
     if plist.get_layout() != h5d.CHUNKED or ds.shape != (1,) or ds.chunks != (1,):
         return "is not one element in one chunk"
@@ -387,13 +384,18 @@ class ArchiveReader:
                     f"supports (up to {FORMAT_VERSION}); upgrade mocapzip to read it"
                 )
         if self.format_version >= 7:
-            if "index" in f.attrs:  # names only: nothing is read yet
+            with _section(self.path, "header"):
+                in_attribute = "index" in f.attrs  # names only: nothing is read yet
+            if in_attribute:
                 payload_ds = self._datasets(file_size, _ATTRIBUTES, ("payload",))["payload"]
-                self._names, lengths, crcs = self._index(f.attrs.get_id("index"), lambda: f.attrs["index"])
+                with _section(self.path, "index"):
+                    stored = f.attrs.get_id("index")
+                self._names, lengths, crcs = self._index(stored, (), lambda size: bytes(f.attrs["index"]))
             else:
                 datasets = self._datasets(file_size, tuple(a for a in _ATTRIBUTES if a != "index"), ("index", "payload"))
                 payload_ds, index_ds = datasets["payload"], datasets["index"]
-                self._names, lengths, crcs = self._index(index_ds.id, lambda: index_ds[0])
+                self._names, lengths, crcs = self._index(index_ds.id, (1,),
+                                                         lambda size: self._inflated(index_ds, size, file_size))
         else:
             datasets = self._datasets(file_size, _LEGACY_ATTRIBUTES, ("index", "payload"))
             payload_ds = datasets["payload"]
@@ -431,20 +433,27 @@ class ArchiveReader:
                 datasets[name] = ds
         return datasets
 
-    def _index(self, stored, read) -> tuple[list[str], list[int], list[int]]:
-        """Format 7: the index (UTF-8 JSON) from `read()`, once its HDF5 object `stored` (the attribute,
-        or the dataset `_index_dataset_problem` passed) is found to be one fixed-length string within
-        the limit; checked against index_crc32. Sets `tool_version`."""
+    def _index(self, stored, shape: tuple, read) -> tuple[list[str], list[int], list[int]]:
+        """Format 7: the index (UTF-8 JSON) from `read(size)`, once its HDF5 object `stored` (the
+        attribute, or the dataset `_index_dataset_problem` passed) is found to hold one null-padded,
+        fixed-length UTF-8 string of `size` bytes within the limit; checked against index_crc32.
+        Sets `tool_version`."""
         f = self._file
         with _section(self.path, "index"):
             kind = stored.get_type()
-            if kind.get_class() != h5t.STRING or kind.is_variable_str() or stored.shape not in ((), (1,)):
-                raise self._error("index: not one fixed-length string")
-            if kind.get_size() > MAX_INDEX_BYTES:
-                raise self._error(f"index: {kind.get_size()} bytes stored, more than the limit of {MAX_INDEX_BYTES}")
-            crc = f.attrs["index_crc32"]
-            index = bytes(read())
-            if not isinstance(crc, np.integer) or zlib.crc32(index) != crc:
+            if (kind.get_class() != h5t.STRING or kind.is_variable_str() or stored.shape != shape
+                    or kind.get_cset() != h5t.CSET_UTF8 or kind.get_strpad() != h5t.STR_NULLPAD):
+                raise self._error("index: not one fixed-length UTF-8 string")
+            size = kind.get_size()
+            if size > MAX_INDEX_BYTES:
+                raise self._error(f"index: {size} bytes stored, more than the limit of {MAX_INDEX_BYTES}")
+            crc_attr = f.attrs.get_id("index_crc32")
+            crc_kind = crc_attr.get_type()
+            if (crc_kind.get_class() != h5t.INTEGER or crc_kind.get_size() != 4 or crc_kind.get_sign() != h5t.SGN_NONE
+                    or crc_attr.shape != ()):
+                raise self._error("index: index_crc32 is not a scalar uint32")
+            index = read(size)
+            if len(index) != size or zlib.crc32(index) != f.attrs["index_crc32"]:
                 raise self._error("index: CRC32 mismatch")
             doc = json.loads(index)
         if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
@@ -454,6 +463,21 @@ class ArchiveReader:
             raise self._error("index: tool must be a non-empty string without NUL")
         self.tool_version = tool
         return self._index_columns(doc, _INDEX_KEYS[1:])
+
+    def _inflated(self, index_ds: h5py.Dataset, size: int, file_size: int) -> bytes:
+        """The index dataset's one chunk, inflated here, never by HDF5: HDF5's deflate filter inflates
+        whatever a chunk holds before dropping what exceeds the element, so a few kilobytes could
+        make it allocate gigabytes. The stored chunk must lie within the file and inflate to exactly
+        `size` bytes (checked as it inflates, never past `size` + 1)."""
+        chunk = index_ds.id.get_chunk_info(0)
+        if chunk.filter_mask or chunk.byte_offset is None or chunk.byte_offset + chunk.size > file_size:
+            raise self._error("index: its chunk is not stored deflated within the file")
+        raw = index_ds.id.read_direct_chunk((0,))[1]
+        inflater = zlib.decompressobj()
+        data = inflater.decompress(raw, size + 1)
+        if len(data) != size or not inflater.eof or inflater.unused_data:
+            raise self._error(f"index: its deflated chunk does not hold exactly its {size} bytes")
+        return data
 
     def _legacy_index(self, index_ds: h5py.Dataset) -> tuple[list[str], list[int], list[int]]:
         """Formats 1 to 6: the zstd-coded index dataset, and the header CRC over the root attributes."""

@@ -291,13 +291,47 @@ def test_index_that_is_not_a_fixed_length_string_is_refused_before_it_is_read(tm
     write_archive(path, {"x": b"12"}, tool_version="1")
     good = _index()
     for value, dtype in ((np.frombuffer(good, np.uint8), None), (good.decode(), h5py.string_dtype()),
-                         (np.array([good, good]), None)):
+                         (np.array([good, good]), h5py.string_dtype("utf-8", len(good))),
+                         (np.bytes_(good), h5py.string_dtype("ascii", len(good)))):
         with h5py.File(path, "r+") as f:
             del f.attrs["index"]
             f.attrs.create("index", value, dtype=dtype)
             f.attrs["index_crc32"] = np.uint32(zlib.crc32(good))
-        with pytest.raises(ArchiveError, match="index: not one fixed-length string"):
+        with pytest.raises(ArchiveError, match="index: not one fixed-length UTF-8 string"):
             ArchiveReader(path)
+
+
+def test_index_crc_that_is_not_a_uint32_is_refused(tmp_path):
+    path = tmp_path / "bad.mcz"
+    write_archive(path, {"x": b"12"}, tool_version="1")
+    with h5py.File(path, "r+") as f:
+        f.attrs["index_crc32"] = np.int64(f.attrs["index_crc32"])
+    with pytest.raises(ArchiveError, match="index: index_crc32 is not a scalar uint32"):
+        ArchiveReader(path)
+
+
+def many_streams_with_chunk(tmp_path: Path, chunk: bytes) -> Path:
+    """The golden container whose index is a dataset, with its one chunk's stored bytes replaced."""
+    path = tmp_path / "many.mcz"
+    path.write_bytes((GOLDEN / "container_v7_index_dataset.mcz").read_bytes())
+    with h5py.File(path, "r+") as f:
+        f["index"].id.write_direct_chunk((0,), chunk)
+    return path
+
+
+def test_an_index_chunk_that_inflates_past_its_size_is_refused_before_it_is_inflated(tmp_path):
+    """A deflate bomb: HDF5's own filter would inflate all of it; the reader stops one byte past the index."""
+    with h5py.File(GOLDEN / "container_v7_index_dataset.mcz", "r") as f:
+        text = bytes(f["index"][0])
+    deflater = zlib.compressobj(9)
+    bomb = b"".join([deflater.compress(text), *(deflater.compress(bytes(1 << 20)) for _ in range(64)), deflater.flush()])
+    assert len(bomb) < 100_000  # 64 MiB stored in kilobytes
+    with pytest.raises(ArchiveError, match=f"index: its deflated chunk does not hold exactly its {len(text)} bytes"):
+        ArchiveReader(many_streams_with_chunk(tmp_path, bomb))
+    with pytest.raises(ArchiveError, match="does not hold exactly"):  # and one that falls short
+        ArchiveReader(many_streams_with_chunk(tmp_path, zlib.compress(text[:-1])))
+    with ArchiveReader(many_streams_with_chunk(tmp_path, zlib.compress(text))) as reader:
+        assert reader.names() == list(MANY_STREAMS)
 
 
 def test_index_crc_mismatch_is_refused(tmp_path):

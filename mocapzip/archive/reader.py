@@ -103,18 +103,19 @@ class Archive:
 
     def _skeletons(self) -> list[str]:
         """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
-        expected = ArchiveError(f"skeletons: expected {len(self.meta['skeletons'])} ASF texts, as meta lists",
-                                self.path)
-        if self.format_version >= 7:
+        count = len(self.meta["skeletons"])
+        if self.format_version >= 7:  # packed bytes: every byte is a Latin-1 character
             try:
                 texts = [blob.decode("latin-1") for blob in unpack_blobs(self._unpacked("skeletons"))]
             except ValueError as exc:
                 raise ArchiveError(f"skeletons: {exc}", self.path) from exc
-        else:
+            valid = len(texts) == count
+        else:  # a JSON list of str
             texts = self._json("skeletons")
-        if not (isinstance(texts, list) and len(texts) == len(self.meta["skeletons"])
-                and all(isinstance(t, str) and max(t, default="\0") <= "\xff" for t in texts)):
-            raise expected
+            valid = (isinstance(texts, list) and len(texts) == count
+                     and all(isinstance(t, str) and max(t, default="\0") <= "\xff" for t in texts))
+        if not valid:
+            raise ArchiveError(f"skeletons: expected {count} ASF texts, as meta lists", self.path)
         return texts
 
     def skeleton_text(self, index: int) -> str:

@@ -2,8 +2,8 @@
 
 Implements docs/format.md, sections "Layout", "The index", "Checksums" and "Versions",
 plus the zstd-frame rules of the streams spec ("zstd frames") and its "Dictionaries". A
-trusted-input reader: it checks the magic, the header and index CRCs, the index's layout and
-every stream's CRC, and raises ValueError on any mismatch.
+trusted-input reader: it checks the magic, the index CRC (formats 1 to 6: also the header CRC),
+that the lengths fill the payload, and every stream's CRC, and raises ValueError on any mismatch.
 """
 
 import hashlib
