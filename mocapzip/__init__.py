@@ -1,8 +1,31 @@
-"""mocapzip: compress motion-capture databases (Acclaim ASF/AMC) into one small .mcz archive."""
+"""mocapzip: compress motion-capture databases (Acclaim ASF/AMC) into one small .mcz archive.
+
+    import mocapzip
+    with mocapzip.open("db.mcz") as archive:
+        clip = archive["07/07_01.amc"]   # decodes this clip only
+        clip.positions()                 # (frames, joints, 3) in cm
+
+The API (docs/api.md) lives in `mocapzip.api`; its names are loaded on first use, so that
+`import mocapzip` (and `mcz --help`) stays fast.
+"""
 
 import os as _os
 
 __version__ = "0.1.0"
+__all__ = ["ArchiveError", "Clip", "ClipError", "MocapArchive", "MocapFormatError", "SettingsError", "__version__",
+           "compress", "decompress", "open", "read_amc", "read_asf", "write_amc", "write_asf"]
+
+
+def __getattr__(name: str):
+    if name in __all__:
+        from mocapzip import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'mocapzip' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
 
 # Run from a source checkout. formats/ and cli/ live beside this directory, not inside it;
 # setuptools maps them to mocapzip.formats / mocapzip.cli only when installing (package-dir in

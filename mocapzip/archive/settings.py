@@ -70,6 +70,8 @@ def checked(settings: Settings) -> Settings:
     if settings.coefficient_coder not in written_coders():
         raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
                             f"{FORMAT_VERSION}; choose one of {', '.join(written_coders())}")
+    if not settings.error_cm > 0:
+        raise SettingsError(f"error_cm must be above 0, got {settings.error_cm}")
     bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm}
     bounds = {name: bound for name, bound in bounds.items() if bound is not None}
     for name, bound in bounds.items():
