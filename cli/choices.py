@@ -6,12 +6,11 @@ import math
 
 import click
 
+from mocapzip.defaults import MAX_TO_MEAN  # --max-error's default, as a multiple of -e
+
 TRANSFORMS = ("dct", "dwt", "identity")
 REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
 
-# --max-error's default, as a multiple of -e: it removes gross errors for a few per cent more bytes
-# (docs/fidelity.md, from `python benchmarks/max_error.py`)
-MAX_TO_MEAN = 10.0
 CONTACT_ERROR_CM = None  # --contact-error's default: off (its cost and foot skate: docs/fidelity.md)
 
 

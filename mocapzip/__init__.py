@@ -12,12 +12,13 @@ The API (docs/api.md) lives in `mocapzip.api`; its names are loaded on first use
 import os as _os
 
 __version__ = "0.1.0"
-__all__ = ["ArchiveError", "Clip", "ClipError", "MocapArchive", "MocapFormatError", "SettingsError", "__version__",
-           "compress", "decompress", "open", "read_amc", "read_asf", "write_amc", "write_asf"]
+__all__ = ["ArchiveError", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError", "__version__",
+           "compress", "decompress", "joint_positions", "read_amc", "read_asf", "write_amc", "write_asf"]
+_API = {*__all__, "open"} - {"__version__"}  # `open` is left out of __all__: a star import keeps the built-in
 
 
 def __getattr__(name: str):
-    if name in __all__:
+    if name in _API:
         from mocapzip import api
 
         return getattr(api, name)
@@ -25,7 +26,7 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+    return sorted({*globals(), *_API})
 
 # Run from a source checkout. formats/ and cli/ live beside this directory, not inside it;
 # setuptools maps them to mocapzip.formats / mocapzip.cli only when installing (package-dir in

@@ -6,14 +6,16 @@ decompress, read and write ASF/AMC files.
         clip = archive["07/07_01.amc"]   # decodes this clip only
         clip.positions()                 # (frames, joints, 3) in cm
 
-`mocapzip` re-exports every name in `__all__` and imports this module on first use, so
-`import mocapzip` stays cheap. Errors: `MocapFormatError` for an input file that cannot be read
-(it names the file and line), `ArchiveError` (a `MocapFormatError`) for a damaged or invalid
-archive, `SettingsError` (a `ValueError`) for options an archive cannot hold.
+`mocapzip` re-exports these names and imports this module on first use, so `import mocapzip`
+stays cheap (and changes nothing in the process: no environment variable, no exception hook).
+Errors: `MocapFormatError` for an input file that cannot be read (it names the file and line),
+`ArchiveError` (a `MocapFormatError`) for a damaged or invalid archive, `SettingsError` (a
+`ValueError`) for options an archive cannot hold. An open archive is for one thread at a time.
 """
 
 from __future__ import annotations
 
+import numbers
 import os
 from collections.abc import Iterable, Iterator
 from functools import cached_property
@@ -23,7 +25,7 @@ import numpy as np
 
 from mocapzip.archive import reader, settings, writer
 from mocapzip.archive.settings import SettingsError
-from mocapzip.cli.choices import MAX_TO_MEAN  # the command line's default bound: both compress alike
+from mocapzip.defaults import MAX_TO_MEAN
 from mocapzip.formats.amc import Motion, parse_amc, read_amc, write_amc
 from mocapzip.formats.asf import Skeleton, parse_asf, read_asf, write_asf
 from mocapzip.formats.errors import MocapFormatError
@@ -31,63 +33,79 @@ from mocapzip.formats.mcz import ArchiveError
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
 
-__all__ = ["ArchiveError", "Clip", "ClipError", "MocapArchive", "MocapFormatError", "SettingsError", "compress",
-           "decompress", "open", "read_amc", "read_asf", "write_amc", "write_asf"]
+__all__ = ["ArchiveError", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError", "compress",
+           "decompress", "joint_positions", "read_amc", "read_asf", "write_amc", "write_asf"]
+# also `open`, left out of __all__ so that `from mocapzip import *` does not hide the built-in
 
-class ClipError(NamedTuple):
+
+class ClipFidelity(NamedTuple):
     """How far a clip's joints are from its source, measured end to end through the AMC
-    values `decompress` writes: the mean over joints and frames, the 99th percentile and the
-    maximum, in cm. p99 is None in archives written before format 5."""
+    values `decompress` writes, in cm: the mean over joints and frames, the 99th percentile of
+    the frames' mean and the largest. All 0 for a lossless archive; p99 is None in lossy
+    archives written before format 5, which did not store it."""
 
     mean_cm: float
     p99_cm: float | None
     max_cm: float
 
 
+def joint_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:
+    """(frames, joints, 3) float64 joint positions in cm of `motion` on `skeleton`, by forward
+    kinematics: the root, then the end of every bone (the joints mcz's errors are measured on)."""
+    return forward(SkeletonModel.from_asf(skeleton), motion.values, motion).positions
+
+
 class Clip:
     """One clip of an open archive. Its motion is decoded on first use (only this clip's
-    streams are read), then kept."""
+    streams are read), then kept for as long as the clip is."""
 
-    def __init__(self, archive: reader.Archive, index: int):
-        self._archive, self.index = archive, index
-        row = archive.clips[index]
+    def __init__(self, archive: MocapArchive, index: int):
+        self._owner, self.index = archive, index
+        row = archive._archive.clips[index]
         self.path: str = row["path"]
         self.frames: int = row["frames"]
-        self.fps: float = archive.settings.fps
-        self.error = ClipError(row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"])
+        # ASF/AMC store no frame rate: this is the one compress was told (--fps, default 120)
+        self.fps: float = archive._archive.settings.fps
+        lossless = archive._archive.settings.lossless
+        self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"])
 
     def __repr__(self) -> str:
         return f"<Clip {self.path!r}: {self.frames} frames at {self.fps:g} fps, mean error {self.error.mean_cm:.3f} cm>"
 
     @cached_property
     def skeleton(self) -> Skeleton:
-        """The clip's ASF skeleton, parsed (the file comes back byte for byte: `asf_text`)."""
+        """The clip's ASF skeleton, parsed (the file itself, byte for byte: `asf_text`)."""
         return parse_asf(self.asf_text.encode("latin-1"), self._archive.meta["skeletons"][self._skeleton]["name"])
 
-    @property
+    @cached_property
     def asf_text(self) -> str:
         """The ASF file as it was compressed, one character per byte (Latin-1)."""
         return self._archive.skeleton_text(self._skeleton)
 
     @cached_property
     def motion(self) -> Motion:
-        """The clip as the AMC file `decompress` writes, read back: bones, values, frame numbers."""
-        data = self._archive.file_bytes("amc", self.index)
-        return parse_amc(data, self.path, self.skeleton)
+        """The clip as the AMC file `decompress` writes, read back: bones, counts, values (read-only)."""
+        motion = parse_amc(self._archive.file_bytes("amc", self.index), self.path, self.skeleton)
+        motion.values.flags.writeable = False  # positions() are computed from them
+        return motion
 
     @property
     def channels(self) -> np.ndarray:
-        """(frames, channels) float64: the AMC values, bone after bone in `motion.bones` order."""
+        """(frames, values) float64, read-only: the AMC values, bone after bone in `motion.bones` order."""
         return self.motion.values
 
     @cached_property
     def joint_names(self) -> tuple[str, ...]:
-        """The joints of `positions()`: the root, then the end point of each bone."""
+        """The joints of `positions()`: the root, then the end of every bone."""
         return SkeletonModel.from_asf(self.skeleton).names
 
     def positions(self) -> np.ndarray:
-        """(frames, joints, 3) float64 joint positions in cm, by forward kinematics of `channels`."""
-        return forward(SkeletonModel.from_asf(self.skeleton), self.channels, self.motion).positions
+        """(frames, joints, 3) float64 joint positions in cm (`joint_positions` of this clip)."""
+        return joint_positions(self.skeleton, self.motion)
+
+    @property
+    def _archive(self) -> reader.Archive:
+        return self._owner._open_archive()
 
     @property
     def _skeleton(self) -> int:
@@ -95,13 +113,19 @@ class Clip:
 
 
 class MocapArchive:
-    """An open .mcz archive: its clips in archive order, by index or by path. Use as a context
-    manager (or call `close`)."""
+    """An open .mcz archive: its clips in archive order, by index or by path, each decoded once,
+    when first asked for. Use as a context manager (or call `close`)."""
 
     def __init__(self, path: str | os.PathLike):
-        self._archive = reader.Archive(path)
+        self._archive: reader.Archive | None = reader.Archive(path)
         self.path = self._archive.path
         self._index = {row["path"]: i for i, row in enumerate(self._archive.clips)}
+        self._clips: dict[int, Clip] = {}
+
+    def _open_archive(self) -> reader.Archive:
+        if self._archive is None:
+            raise ValueError(f"I/O operation on a closed archive ({self.path})")
+        return self._archive
 
     @property
     def paths(self) -> list[str]:
@@ -110,34 +134,42 @@ class MocapArchive:
 
     @property
     def settings(self) -> settings.Settings:
-        """What the archive was compressed with (error target, bounds, representation...)."""
-        return self._archive.settings
+        """What the archive was compressed with (error target, bounds, representation, fps...)."""
+        return self._open_archive().settings
 
     def __len__(self) -> int:
         return len(self._index)
 
     def __iter__(self) -> Iterator[Clip]:
-        return (Clip(self._archive, i) for i in range(len(self)))
+        return (self[i] for i in range(len(self)))
 
     def __contains__(self, path: object) -> bool:
         return path in self._index
 
     def __getitem__(self, key: str | int) -> Clip:
-        """The clip with this path, or at this index (negative counts from the end)."""
+        """The clip with this path, or at this position (negative counts from the end)."""
         if isinstance(key, str):
             if key not in self._index:
                 raise KeyError(f"no clip {key!r} in {self.path}")
-            return Clip(self._archive, self._index[key])
-        if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
-            return Clip(self._archive, range(len(self))[key])
-        raise TypeError(f"clips are indexed by path (str) or position (int), not {type(key).__name__}")
+            index = self._index[key]
+        elif isinstance(key, numbers.Integral) and not isinstance(key, bool):
+            index = range(len(self))[key]
+        else:
+            raise TypeError(f"clips are indexed by path (str) or position (int), not {type(key).__name__}")
+        self._open_archive()
+        if index not in self._clips:
+            self._clips[index] = Clip(self, index)
+        return self._clips[index]
 
     def verify(self, jobs: int = 1) -> None:
         """Decode every clip and check every checksum, as `mcz test` (ArchiveError if one fails)."""
-        self._archive.verify(jobs)
+        self._open_archive().verify(jobs)
 
     def close(self) -> None:
-        self._archive._reader.close()
+        """Close the file. Clips already decoded keep their data; decoding another raises ValueError."""
+        if self._archive is not None:
+            self._archive.__exit__(None, None, None)
+            self._archive = None
 
     def __enter__(self) -> MocapArchive:
         return self
@@ -146,38 +178,67 @@ class MocapArchive:
         self.close()
 
     def __repr__(self) -> str:
-        return f"<MocapArchive {self.path!r}: {len(self)} clips>"
+        state = "closed, " if self._archive is None else ""
+        return f"<MocapArchive {self.path!r}: {state}{len(self)} clips>"
 
 
 def open(path: str | os.PathLike) -> MocapArchive:  # noqa: A001 (mocapzip.open, as gzip.open)
-    """Open the archive at `path` for reading: checks its header, index and meta, reads no clip."""
+    """Open the archive at `path` for reading: checks its header, index and meta, decodes no clip."""
     return MocapArchive(path)
 
 
-def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: str | os.PathLike, *,
-             error: float = settings.DEFAULT_ERROR_CM, max_error: float | str | None = "default",
-             contact_error: float | None = None, lossless: bool = False, classes: str = "pooled",
-             jobs: int = 1, force: bool = False, **options) -> dict:
-    """Compress the ASF/AMC files under `inputs` (folders or files) into the archive `output`, as
-    `mcz compress` does; return its summary (clips, frames, bytes, achieved errors).
+_DEFAULT = object()  # max_error not given: the command line's default, MAX_TO_MEAN x error
+# Settings fields that compress's own keywords set: given through **options they would conflict
+_KEYWORD_FIELDS = {"error_cm": "error", "max_error_cm": "max_error", "contact_error_cm": "contact_error",
+                   "lossless": "lossless", "classes": "classes"}
 
-    `error`: each clip's mean joint error bound in cm. `max_error`: the bound on every joint of every
-    frame, in cm ("default": 10 x `error`, as the command line; None: no bound). `contact_error`: the
-    bound on planted foot joints. Other `options` are `Settings` fields (e.g. representation="positions").
-    An existing `output` is replaced only with `force`.
+
+def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: str | os.PathLike, *,
+             error: float = settings.DEFAULT_ERROR_CM, max_error: float | None = _DEFAULT,
+             contact_error: float | None = None, lossless: bool = False, classes: str = "pooled",
+             asf: str | os.PathLike | None = None, skip_bad: bool = False, jobs: int = 1, force: bool = False,
+             **options) -> dict:
+    """Compress the ASF/AMC files under `inputs` (folders or files) into the archive `output`, as
+    `mcz compress` does (one worker process unless `jobs` says more); return its summary: clips,
+    frames, bytes, achieved errors.
+
+    `error`: each clip's mean joint error bound in cm. `max_error`: the bound on every joint of
+    every frame in cm (not given: 10 x `error`, as the command line; None: no bound).
+    `contact_error`: the bound on planted foot joints. `lossless`: every AMC value back exactly
+    (then no error or bound may be given). `asf`: the skeleton of AMC files that have none beside
+    them; `skip_bad`: leave out clips that cannot be read, listed in the summary. Other keywords
+    are fields of `mocapzip.archive.Settings` (representation="positions", fps=60, ...). An
+    existing `output` is replaced only with `force`.
     """
-    if isinstance(inputs, (str, os.PathLike)):
-        inputs = [inputs]
-    bound = MAX_TO_MEAN * error if max_error == "default" else max_error
-    chosen = settings.Settings(error_cm=error, max_error_cm=None if lossless else bound,
-                               contact_error_cm=None if lossless else contact_error, lossless=lossless,
-                               classes=classes, **options)
-    return writer.compress([os.fspath(p) for p in inputs], output, chosen, force=force, jobs=jobs)
+    clashing = sorted(set(options) & set(_KEYWORD_FIELDS))
+    if clashing:
+        raise SettingsError(f"give {clashing[0]} as {_KEYWORD_FIELDS[clashing[0]]}=")
+    for name, bound in (("max_error", max_error), ("contact_error", contact_error)):
+        if bound is not None and bound is not _DEFAULT and not isinstance(bound, numbers.Real):
+            raise SettingsError(f"{name} must be a number of cm or None, not {bound!r}")
+    if lossless:
+        given = [name for name, value in (("error", error != settings.DEFAULT_ERROR_CM),
+                                          ("max_error", max_error is not _DEFAULT), ("contact_error", contact_error))
+                 if value]
+        if given:
+            raise SettingsError(f"{given[0]} has no meaning with lossless=True (it stores every AMC value exactly)")
+        max_error = None
+    elif max_error is _DEFAULT:
+        max_error = MAX_TO_MEAN * error
+    try:
+        chosen = settings.Settings(error_cm=error, max_error_cm=max_error, contact_error_cm=contact_error,
+                                   lossless=lossless, classes=classes, **options)
+    except TypeError as exc:  # a keyword that is no Settings field
+        raise SettingsError(f"compress() takes no option {str(exc).rsplit(' ', 1)[-1]}") from None
+    inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
+    return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force, jobs=jobs,
+                           skip_bad=skip_bad)
 
 
 def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Iterable[str] = (), *,
                force: bool = False, jobs: int = 1) -> dict:
     """Write the ASF and AMC files of the archive's clips under the folder `output`, as
-    `mcz decompress` does: all clips, or those whose path matches one of the `clips` patterns
-    (shell-style, e.g. "07/*"). Existing files are replaced only with `force`."""
+    `mcz decompress` does (one worker process unless `jobs` says more): all clips, or those
+    whose path matches one of the `clips` patterns (shell-style, e.g. "07/*"). Existing files
+    are replaced only with `force`."""
     return reader.decompress(archive, output, tuple(clips), force=force, jobs=jobs)

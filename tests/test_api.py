@@ -4,13 +4,17 @@ its defaults and errors are the command line's."""
 from __future__ import annotations
 
 import doctest
+import json
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+from click.testing import CliRunner
 
 import mocapzip
+from mocapzip.cli.main import main
 from mocapzip.formats.mcz import ArchiveReader
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "api.md"
@@ -24,10 +28,16 @@ def test_the_examples_in_docs_api_md_run(shared_data, tmp_path, monkeypatch):
     assert result.failed == 0 and result.attempted >= 20, result
 
 
-def test_import_mocapzip_stays_cheap():
-    code = "import sys, mocapzip; assert 'numpy' not in sys.modules; mocapzip.open; assert 'numpy' in sys.modules"
+def test_import_mocapzip_stays_cheap_and_changes_nothing_in_the_process():
+    code = ("import os, sys; hook, env = sys.excepthook, dict(os.environ); import mocapzip; "
+            "assert 'numpy' not in sys.modules; mocapzip.open; assert 'numpy' in sys.modules; "
+            "assert sys.excepthook is hook and dict(os.environ) == env and 'mocapzip.cli' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
-    assert set(mocapzip.__all__) <= set(dir(mocapzip))
+    # and `mcz --help` imports neither NumPy nor the API
+    code = "import sys, mocapzip.cli.main; assert not {'numpy', 'mocapzip.api'} & set(sys.modules)"
+    subprocess.run([sys.executable, "-c", code], check=True)
+    for name in [*mocapzip.__all__, "open"]:
+        assert getattr(mocapzip, name) is not None
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         mocapzip.nothing
 
@@ -44,7 +54,7 @@ def test_reading_one_clip_reads_only_its_own_streams(monkeypatch):
         clip.channels
         assert set(read) == {"clip/00001", "patch/00001", "class/0000", "priors"}
         read.clear()
-        clip.positions()
+        clip.positions(), archive["64_01.amc"].channels, list(archive)[1].positions()
         assert read == []  # decoded once, then kept
 
 
@@ -52,8 +62,9 @@ def test_clips_by_path_and_position():
     with mocapzip.open(GOLDEN_LOSSY) as archive:
         assert [clip.path for clip in archive] == archive.paths == ["09_01.amc", "64_01.amc"]
         assert archive[-1].path == archive[1].path == "64_01.amc"
-        assert archive["09_01.amc"].error == mocapzip.ClipError(*(archive._archive.clips[0][key] for key in (
-            "error_cm", "p99_error_cm", "max_error_cm")))
+        report = json.loads(CliRunner().invoke(main, ["info", "--json", str(GOLDEN_LOSSY)]).output)
+        assert [tuple(clip.error) for clip in archive] == [
+            (row["error_cm"], row["p99_error_cm"], row["max_error_cm"]) for row in report["clips"]]
         with pytest.raises(KeyError, match="no clip '10_01.amc'"):
             archive["10_01.amc"]
         with pytest.raises(IndexError):
@@ -76,3 +87,36 @@ def test_compress_takes_the_command_line_defaults(shared_data, tmp_path):
     with pytest.raises(mocapzip.SettingsError, match="representation"):
         mocapzip.compress([asf, clip], tmp_path / "b.mcz", representation="quaternions")
     assert not (tmp_path / "b.mcz").exists()
+
+
+def test_a_closed_archive_keeps_what_was_decoded_and_refuses_more():
+    archive = mocapzip.open(GOLDEN_LOSSY)
+    with archive:
+        first = archive[0]
+        values = first.channels.copy()
+    assert np.array_equal(first.channels, values) and first.positions().shape == (148, 31, 3)
+    with pytest.raises(ValueError, match="closed archive"):
+        archive[1]
+    with pytest.raises(ValueError, match="read-only"):
+        first.channels[0, 0] = 1.0
+
+
+def test_a_lossless_archive_reports_zero_error_and_exact_values(shared_data):
+    with mocapzip.open(GOLDEN_LOSSY.with_name("lossless_v1.mcz")) as archive:
+        clip = archive[0]
+        assert clip.error == mocapzip.ClipFidelity(0.0, 0.0, 0.0)
+        source = mocapzip.read_amc(shared_data / "cmu" / "09" / clip.path.split("/")[-1])
+        assert np.array_equal(clip.channels, source.values)
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"error_cm": 2.0}, "give error_cm as error="),
+    ({"max_error": "none"}, "max_error must be a number of cm or None"),
+    ({"lossless": True, "max_error": 3.0}, "max_error has no meaning with lossless=True"),
+    ({"colour": "red"}, "compress.. takes no option 'colour'"),
+    ({"error": 0}, "error_cm must be above 0"),
+])
+def test_compress_refuses_options_it_cannot_honour_before_reading_anything(tmp_path, options, message):
+    with pytest.raises(mocapzip.SettingsError, match=message):
+        mocapzip.compress(tmp_path / "no such folder", tmp_path / "a.mcz", **options)
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,6 @@
+"""Defaults the command line and the Python API share. No imports: `mcz --help` and
+`import mocapzip` read them without loading NumPy."""
+
+# compress's default bound on every joint, as a multiple of the mean target (-e): it removes
+# gross errors for a few per cent more bytes (docs/fidelity.md, from `python benchmarks/max_error.py`)
+MAX_TO_MEAN = 10.0
