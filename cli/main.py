@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections import Counter
 
 import click
 from click.core import ParameterSource
@@ -45,7 +46,9 @@ def jobs_option(work: str):
 @main.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path())
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
-@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=120.0, show_default=True, help="Frame rate for durations (ASF/AMC do not store it).")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Frame rate for durations and the glitch check, for every clip (default: the rate a clip's "
+                   "files state, as Vicon Blade's '# Frame Rate: 200.000 fps', else 120).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
 @click.option("--check", is_flag=True,
               help="Also list glitches in the source, per clip, bone and frames: joints that jump faster than "
@@ -74,12 +77,13 @@ def inspect(paths, asf, fps, as_json, check):
         return
     rows = report["clips"]
     width = max([len(r["path"]) for r in rows] + [4])
-    click.echo(f"{'clip':<{width}}  {'frames':>7}  {'dof':>4}  {'seconds':>8}  skeleton")
+    click.echo(f"{'clip':<{width}}  {'frames':>7}  {'dof':>4}  {'fps':>7}  {'seconds':>8}  skeleton")
     for r in rows:
-        click.echo(f"{r['path']:<{width}}  {r['frames']:>7}  {r['dof']:>4}  {r['seconds']:>8.2f}  {r['skeleton'] or '-'}")
+        click.echo(f"{r['path']:<{width}}  {r['frames']:>7}  {r['dof']:>4}  {r['fps']:>7g}  {r['seconds']:>8.2f}  "
+                   f"{r['skeleton'] or '-'}")
     t = report["total"]
-    click.echo(f"{'total: ' + _count(t['clips'], 'clip'):<{width}}  {t['frames']:>7}  {'':>4}  {t['seconds']:>8.2f}  "
-               f"{_count(t['skeletons'], 'skeleton')}, {t['bytes'] / 1e6:.1f} MB of AMC")
+    click.echo(f"{'total: ' + _count(t['clips'], 'clip'):<{width}}  {t['frames']:>7}  {'':>4}  {'':>7}  "
+               f"{t['seconds']:>8.2f}  {_count(t['skeletons'], 'skeleton')}, {t['bytes'] / 1e6:.1f} MB of AMC")
 
 
 def _glitch_lines(clips: list[dict]) -> None:
@@ -186,8 +190,10 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--split", default=None, metavar="R,P,T",
               help="Force the error split between root motion, PCA and temporal coding (shares of --error).")
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
-@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=120.0, show_default=True,
-              help="Frame rate stored in the archive (ASF/AMC do not carry one; CMU and HDM05 are 120).")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Frame rate of every clip, stored in the archive. ASF/AMC have no field for it: by default "
+                   "a clip takes the rate its files state (AMC header '# Frame Rate: 200.000 fps', or 'fps:30' in "
+                   "the ASF's :documentation), else 120 (CMU, HDM05).")
 @jobs_option("reading the clips, the error search and the priors")
 @click.option("--cache-mb", type=click.IntRange(min=0), default=512, show_default=True,
               help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
@@ -229,8 +235,8 @@ def compress(inputs, output, error_cm, max_error, contact_error, repair_glitches
     contact = None if lossless else contact_error_cm(contact_error)
     settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, contact_error_cm=contact,
                                 repair_glitches=repair_glitches, representation=representation, transform=transform_config,
-                                classes=classes, split=_parse_split(split), fps=fps, lossless=lossless,
-                                segment=segment)
+                                classes=classes, split=_parse_split(split), fps=120.0 if fps is None else fps,
+                                fps_from_files=fps is None, lossless=lossless, segment=segment)
     try:
         summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad,
                                    cache_bytes=cache_mb << 20)
@@ -308,7 +314,10 @@ def info(archive_path, show_clips, as_json):
     mode = ("lossless" if s["lossless"] else
             f"mean error <= {s['error_cm']} cm{bound}, {s['representation']}, {s['transform']['id']}")
     click.echo(f"{report['path']}: format {report['format_version']}, written by {report['tool']}")
-    click.echo(f"settings: {mode}, classes {s['classes']}{', segmented' if s.get('segment') else ''}, {s['fps']} fps")
+    own = Counter(c["fps"] for c in report["clips"] if c["fps"] != s["fps"])  # rates the clips' files stated
+    rates = "".join(f", {_count(n, 'clip')} at {fps:g} fps (from their files)" for fps, n in sorted(own.items()))
+    click.echo(f"settings: {mode}, classes {s['classes']}{', segmented' if s.get('segment') else ''}, "
+               f"{s['fps']:g} fps{rates}{'' if s.get('fps_from_files', True) else ' (--fps, for every clip)'}")
     click.echo(f"{_count(len(report['clips']), 'clip')}, {_count(report['frames'], 'frame')}, {report['bytes']:,} bytes "
                f"({report['bytes_per_frame']:.2f} bytes/frame), {_errors(report)}")
     click.echo("streams: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(report["stream_bytes"].items())))

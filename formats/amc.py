@@ -54,6 +54,7 @@ from mocapzip.formats.text import (
     detect_encoding,
     number,
     open_regular_file,
+    stated_frame_rate,
 )
 from mocapzip.formats.amc_compiled import (
     LAYOUT_OK,
@@ -139,6 +140,11 @@ class Motion:
     @property
     def n_frames(self) -> int:
         return int(self.values.shape[0])
+
+    @property
+    def frame_rate(self) -> float | None:
+        """The frame rate the header states (Vicon Blade: `# Frame Rate: 200.000 fps`), else None."""
+        return stated_frame_rate(self.header)
 
     @property
     def angle_unit(self) -> str:

@@ -4,7 +4,8 @@ The parsed `Skeleton` keeps everything needed to write the file back (header com
 units, documentation, bone order, hierarchy order, unknown bone keywords), so a decoded
 archive gives other ASF readers the file they expect.
 
-Accepted input: sections `:version`, `:name`, `:units` (mass, length, angle deg|rad),
+Accepted input: sections `:version`, `:name`, `:units` (mass, length, angle deg|rad; numbers,
+or units' names as some exporters write them: `mass kg`, `length m`),
 `:documentation`, `:root` (order, axis, position, orientation), `:bonedata` (begin/end
 blocks with id, name, direction, length, axis + order, dof in any order and subset, limits
 with `inf`), `:hierarchy` (begin, `parent child...` lines, end); `#` comments anywhere;
@@ -27,7 +28,7 @@ import numpy as np
 
 from mocapzip.limits import MAX_BONES_PER_SKELETON
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import decode_text, integer, number, read_regular_file, split_lines
+from mocapzip.formats.text import decode_text, integer, number, read_regular_file, split_lines, stated_frame_rate
 
 __all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "format_asf", "write_asf"]
 
@@ -36,6 +37,11 @@ KNOWN_SECTIONS = {"version", "name", "units", "documentation", "root", "bonedata
 DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz", "l")
 ROOT_CHANNELS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
 UNITS_LENGTH_RANGE = (1e-6, 1e6)  # `:units length` (file units per inch); real files: 0.45 (CMU, HDM05), 1 (Blade)
+# `:units length` given as a unit's name instead of a factor (some exporters: `length m`): cm per file unit
+NAMED_LENGTHS = {"m": 100.0, "meter": 100.0, "meters": 100.0, "metre": 100.0, "metres": 100.0,
+                 "cm": 1.0, "centimeter": 1.0, "centimeters": 1.0, "centimetre": 1.0, "centimetres": 1.0,
+                 "mm": 0.1, "millimeter": 0.1, "millimeters": 0.1, "millimetre": 0.1, "millimetres": 0.1,
+                 "in": 2.54, "inch": 2.54, "inches": 2.54}
 MAX_BONE_CM = 1e4  # 100 m; the longest bone of the shared data is 50 cm
 
 
@@ -72,19 +78,27 @@ class Skeleton:
     path: str | None = None
 
     @property
+    def frame_rate(self) -> float | None:
+        """The frame rate the :documentation states (`fps:30`) or a leading comment, else None."""
+        return stated_frame_rate([*self.comments, *self.documentation])
+
+    @property
     def angle_unit(self) -> str:
         """'deg' or 'rad': the unit of axis, limits and AMC angles."""
         return "rad" if self.units.get("angle", "deg").lower().startswith("rad") else "deg"
 
     @property
     def length_scale(self) -> float:
-        """The `:units length` factor: file lengths are (inches x this factor)."""
-        return float(self.units.get("length", "1"))
+        """The `:units length` factor: file lengths are (inches x this factor); a named unit's equivalent."""
+        length = self.units.get("length", "1")
+        return 2.54 / NAMED_LENGTHS[length.lower()] if length.lower() in NAMED_LENGTHS else float(length)
 
     @property
     def cm_per_unit(self) -> float:
-        """Centimetres per file length unit (CMU: 2.54 / 0.45)."""
-        return 2.54 / self.length_scale
+        """Centimetres per file length unit: 2.54 / the `:units length` factor (CMU: 2.54 / 0.45), or
+        what a unit named there measures (`length m`: 100)."""
+        length = self.units.get("length", "1")
+        return NAMED_LENGTHS[length.lower()] if length.lower() in NAMED_LENGTHS else 2.54 / float(length)
 
     def bone(self, name: str) -> Bone:
         for bone in self.bones:
@@ -203,6 +217,10 @@ class _AsfParser:
         if key == "angle":
             if value.lower() not in ("deg", "rad", "degree", "degrees", "radian", "radians"):
                 self.fail(f"angle unit must be 'deg' or 'rad', got {value!r}", lineno)
+        elif key == "length" and value.lower() in NAMED_LENGTHS:
+            pass  # `length m`: the unit itself (Skeleton.cm_per_unit)
+        elif key != "length" and value.isalpha():
+            pass  # `mass kg`: a unit's name, which nothing here uses
         else:
             scale = self.num(value, lineno, what=f"units {key}")
             low, high = UNITS_LENGTH_RANGE

@@ -157,3 +157,23 @@ def integer(word, path: str | None, line: int | None, *, what: str = "value") ->
     if len(raw.lstrip(b"+-0")) > 18:
         raise MocapFormatError(f"{what} {raw[:40].decode('latin-1')} is out of range", path, line)
     return int(raw)
+
+
+MAX_FRAME_RATE = 100_000.0  # frames per second: far above any capture system, below nonsense
+# How exporters state a frame rate in a file that has no field for it: Vicon Blade's AMC header
+# `# Frame Rate: 200.000 fps`, and `fps:30` / `fps = 30` in an ASF's :documentation.
+_STATED_RATES = (re.compile(r"^#\s*frame\s*rate\s*[:=]\s*(\d+(?:\.\d*)?|\.\d+)\s*(?:fps|hz)?\s*$", re.IGNORECASE),
+                 re.compile(r"(?:^|\s)fps\s*[:=]\s*(\d+(?:\.\d*)?|\.\d+)(?:\s|$)", re.IGNORECASE))
+
+
+def stated_frame_rate(lines) -> float | None:
+    """The frame rate the first of `lines` that states one gives, in frames per second, or None.
+
+    ASF and AMC have no field for it (readers assume one: 120 Hz for CMU), but exporters write
+    it in a comment or the documentation; a rate of 0 or above MAX_FRAME_RATE is no rate."""
+    for line in lines:
+        for pattern in _STATED_RATES:
+            match = pattern.search(line.strip())
+            if match and 0 < float(match.group(1)) <= MAX_FRAME_RATE:
+                return float(match.group(1))
+    return None

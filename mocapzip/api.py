@@ -64,8 +64,8 @@ class Clip:
         row = archive._archive.clips[index]
         self.path: str = row["path"]
         self.frames: int = row["frames"]
-        # ASF/AMC store no frame rate: this is the one compress was told (--fps, default 120)
-        self.fps: float = archive._archive.settings.fps
+        # the rate the clip's files stated, else compress's --fps (default 120): ASF/AMC have no field for it
+        self.fps: float = row.get("fps", archive._archive.settings.fps)
         lossless = archive._archive.settings.lossless
         self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"])
 

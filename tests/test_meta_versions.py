@@ -16,7 +16,7 @@ from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError
 GOLDEN = Path(__file__).parent / "golden"
 EXAMPLES = {"coefficient_coder": "context", "axes_from_positions": True, "twist_flips": {"lthumb": [0, 1]},
             "max_error_cm": 10.0, "p99_error_cm": 1.0, "patched_frames": 1, "contact_error_cm": 2.0,
-            "repair_glitches": True, "repaired": [[1, 1, 1.0]]}
+            "repair_glitches": True, "repaired": [[1, 1, 1.0]], "fps_from_files": False, "fps": 200.0}
 
 
 def with_field(meta: dict, part: str, name: str) -> dict:

@@ -15,6 +15,7 @@ import fastjsonschema
 import pywt
 
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
+from mocapzip.formats.text import MAX_FRAME_RATE
 from mocapzip.formats.mcz import ArchiveError
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import stage_classes, stage_ids
@@ -77,6 +78,7 @@ _CLIP = _record(
         "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
         "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
         "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
+        "fps": {"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": MAX_FRAME_RATE},  # format 7 on
         # --repair-glitches (format 6 on): [first, last AMC frame numbers, largest joint error in cm] per run
         "repaired": {"type": "array", "maxItems": MAX_FRAMES_PER_CLIP, "items": {
             "type": "array", "minItems": 3, "maxItems": 3,
@@ -106,6 +108,7 @@ _SETTINGS = _record(
         "max_error_cm": _POSITIVE,
         "contact_error_cm": _POSITIVE,  # format 6 on
         "repair_glitches": {"type": "boolean"},  # format 6 on
+        "fps_from_files": {"type": "boolean"},  # format 7 on; absent: true
         "coefficient_coder": {"enum": [*stage_ids("coefficient coder"), "auto"]},
         "axes_from_positions": {"type": "boolean"},
     },
@@ -139,6 +142,7 @@ ADDED_IN = {
     4: (("settings", "axes_from_positions"), ("clips", "twist_flips")),
     5: (("settings", "max_error_cm"), ("clips", "p99_error_cm"), ("clips", "patched_frames")),
     6: (("settings", "contact_error_cm"), ("settings", "repair_glitches"), ("clips", "repaired")),
+    7: (("settings", "fps_from_files"), ("clips", "fps")),
 }
 
 

@@ -369,7 +369,7 @@ def info(archive_path) -> dict:
         "skeletons": len(meta["skeletons"]),
         "classes": meta["classes"],
         "auto_classes": meta.get("auto_classes", []),
-        "clips": [_info_row(r) for r in meta["clips"]],
+        "clips": [_info_row(r, meta["settings"]["fps"]) for r in meta["clips"]],
         "frames": frames,
         "bytes": size,
         "bytes_per_frame": size / frames if frames else 0.0,
@@ -382,9 +382,11 @@ def info(archive_path) -> dict:
     }
 
 
-def _info_row(row: dict) -> dict:
-    """A clip as `info` lists it; a segmented take (--segment) with its segments' frames, classes and errors."""
+def _info_row(row: dict, fps: float) -> dict:
+    """A clip as `info` lists it, with its frame rate (its row's, format 7 on, else the settings'
+    `fps`); a segmented take (--segment) with its segments' frames, classes and errors."""
     out = {k: row[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")}
+    out["fps"] = row.get("fps", fps)
     # p99: format 5 on; patches: --max-error or --contact-error; repaired: --repair-glitches (format 6 on)
     for optional in ("p99_error_cm", "patched_frames", "dropped_frames", "repaired"):
         if optional in row:

@@ -27,7 +27,8 @@ class Settings:
     dead_zone: float = 0.2
     basis_precision: float = 0.04  # basis rounding error per direction, as a share of error_cm (docs/fixed_costs.md)
     axis_weight_cm: float = 12.0  # weight of bone axis vectors against positions (weighted.pose_weights; solved_bones.py)
-    fps: float = 120.0
+    fps: float = 120.0  # clips' frame rate where their files state none (ASF/AMC have no field for it)
+    fps_from_files: bool = True  # a rate the clip's files state wins over `fps` (False: --fps given, for all)
     lossless: bool = False
     segment: bool = False  # cut long takes at PPCA change points, each segment coded on its own
     # clip streams' coefficient coder: "primed" (models start from the archive's priors; format 3 on),

@@ -79,7 +79,8 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
                             + [p for p in (asf, settings.classes) if p is not None and os.path.isfile(p)])
     keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
     reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
-                        None if keeps_all else cache_bytes, settings.axes_from_positions, settings.fps)
+                        None if keeps_all else cache_bytes, settings.axes_from_positions, settings.fps,
+                        settings.fps_from_files)
     with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
         scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all, jobs=jobs)
         if not scan.sources:
@@ -108,6 +109,8 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         for flag in ("segment", "repair_glitches"):
             if not stored_settings[flag]:
                 del stored_settings[flag]  # absent means off
+        if stored_settings["fps_from_files"]:
+            del stored_settings["fps_from_files"]  # absent means on (format 7 on: rows say where it applied)
         for bound in ("max_error_cm", "contact_error_cm"):
             if stored_settings[bound] is None:
                 del stored_settings[bound]  # absent means no such bound
@@ -234,7 +237,7 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                         raise
                     record_skip(skipped, source, exc)
                     continue
-                scan.rows.append(_clip_row(clip))
+                scan.rows.append(_clip_row(clip, settings.fps))
                 if clip.glitches:
                     scan.glitches.update(g.kind for g in clip.glitches)
                     scan.glitches["clips"] += 1
@@ -502,8 +505,9 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
     return streams
 
 
-def _clip_row(clip: LoadedClip) -> dict:
-    """A clip's row in meta as far as the clip itself tells (its skeleton, class and errors come later)."""
+def _clip_row(clip: LoadedClip, fps: float) -> dict:
+    """A clip's row in meta as far as the clip itself tells (its skeleton, class and errors come later);
+    `fps` is the settings', which the row repeats only where the clip's own differs."""
     m = clip.motion
     row = {
         "path": clip.source.relpath,
@@ -517,6 +521,8 @@ def _clip_row(clip: LoadedClip) -> dict:
     }
     if m.dropped_frames:  # an incomplete last frame left out: the archive says so, not only a warning
         row["dropped_frames"] = m.dropped_frames
+    if clip.fps != fps:  # a rate its files state (format 7 on)
+        row["fps"] = clip.fps
     return row
 
 

@@ -70,7 +70,7 @@ from mocapzip.progress import progress
 
 CODECS = ("mcz", "hou", "hou-shared", "xz", "zstd")
 XZ_PRESET = 9
-BENCH_FPS = 120.0  # the frame rate foot skate is measured at: mcz's default, the CMU and HDM05 rate
+BENCH_FPS = 120.0  # a clip's frame rate for foot skate where its files state none: CMU's and HDM05's
 ZSTD_LEVEL = 19
 NO_PCA = "none"  # --classes none: the bench-only "PCA off" emulation
 CLASS_PER_CLIP = "clip"  # --classes clip: one PCA class per clip, in a real archive
@@ -110,6 +110,7 @@ class Clip:
     amc_bytes: int
     channels: int  # AMC values per frame
     joints: int  # joint positions per frame (31 for CMU)
+    fps: float = BENCH_FPS  # its files' rate, else BENCH_FPS (`inputs.clip.clip_frame_rate`): skate is a speed
 
     @property
     def path(self) -> str:
@@ -192,6 +193,7 @@ def _tasks(options: BenchOptions) -> list[dict]:
 def _load_clips(sources: list[ClipSource], options: BenchOptions):
     from mocapzip.formats.amc import read_amc
     from mocapzip.formats.asf import read_asf
+    from mocapzip.inputs.clip import clip_frame_rate
     from mocapzip.motion.skeleton import SkeletonModel
 
     groups = _groups(sources, options.groups, options.inputs)
@@ -202,7 +204,8 @@ def _load_clips(sources: list[ClipSource], options: BenchOptions):
             models[source.asf] = SkeletonModel.from_asf(skeletons[source.asf])
         motion = read_amc(source.amc, skeletons[source.asf])  # warnings (a dropped last frame) show once, here
         clips.append(Clip(source, groups[source.relpath], motion.n_frames, os.path.getsize(source.amc),
-                          motion.values.shape[1], models[source.asf].n_joints))
+                          motion.values.shape[1], models[source.asf].n_joints,
+                          clip_frame_rate(motion, skeletons[source.asf], BENCH_FPS)))
     if any(c.frames == 0 for c in clips):
         raise MocapFormatError("clip has no frames", next(c.source.amc for c in clips if c.frames == 0))
     return clips, models
@@ -265,7 +268,7 @@ def _measure(clip: Clip, models, decoded_model, decoded_motion) -> tuple[dict, n
     decoded_pose = forward(decoded_model, decoded_motion.values, decoded_motion)
     d = joint_distances(pose.positions, decoded_pose.positions)
     return ({**_error_stats(d), "skin_error": skin_error(model, pose, decoded_pose),
-             **_skate(model, pose.positions, decoded_pose.positions)}, d.astype(np.float32))
+             **_skate(model, pose.positions, decoded_pose.positions, clip.fps)}, d.astype(np.float32))
 
 
 def _error_stats(d: np.ndarray) -> dict:
@@ -273,13 +276,13 @@ def _error_stats(d: np.ndarray) -> dict:
             "max_error_cm": float(d.max())}
 
 
-def _skate(model, original: np.ndarray, decoded: np.ndarray) -> dict:
+def _skate(model, original: np.ndarray, decoded: np.ndarray, fps: float) -> dict:
     """Foot skate (`motion.contacts`): how much faster, in cm/s, the source's planted feet slide once
-    decoded; `contact_frames` weighs it in a set's summary."""
+    decoded, at the clip's frame rate `fps`; `contact_frames` weighs it in a set's summary."""
     from mocapzip.motion.contacts import contacts, foot_skate
 
-    planted = contacts(model, original, BENCH_FPS)
-    return {"foot_skate_cm_s": foot_skate(original, decoded, planted, BENCH_FPS), "contact_frames": int(planted.sum())}
+    planted = contacts(model, original, fps)
+    return {"foot_skate_cm_s": foot_skate(original, decoded, planted, fps), "contact_frames": int(planted.sum())}
 
 
 # ----------------------------------------------------------------------------- child processes
@@ -657,7 +660,7 @@ def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOpti
             d = np.linalg.norm(decoded - positions, axis=-1)
             distances[clip.path] = d.astype(np.float32)
             rows.append({**_sizes(clip, len(blob), len(blob)), **_error_stats(d), "skin_error": None,
-                         **_skate(models[clip.source.asf], positions, decoded), "hou": params.as_dict()})
+                         **_skate(models[clip.source.asf], positions, decoded, clip.fps), "hou": params.as_dict()})
         run = _finish_run({"codec": "hou", "label": f"Hou et al. 2015, best (L, k, Q) per clip for mean error <= {t:g} cm",
                            "target_error_cm": t,
                            "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16,
@@ -707,7 +710,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: Be
                 distances[t][clip.path] = d.astype(np.float32)
                 share = len(stream) + len(basis_blob) * clip.frames / group_frames
                 rows[t].append({**_sizes(clip, share, len(stream)), **_error_stats(d), "skin_error": None,
-                                **_skate(models[clip.source.asf], original, back),
+                                **_skate(models[clip.source.asf], original, back, clip.fps),
                                 "basis_bytes": len(basis_blob) * clip.frames / group_frames,
                                 "hou": {"L": choice["L"], "k": choice["k"], "Q": x["Q"]}})
     runs = []

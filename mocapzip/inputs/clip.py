@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from mocapzip.formats.amc import Motion, read_amc
-from mocapzip.formats.asf import read_asf
+from mocapzip.formats.asf import Skeleton, read_asf
 from mocapzip.inputs.discover import ClipSource
 from mocapzip.inputs.glitches import Glitch, find_glitches
 from mocapzip.motion import compiled
@@ -55,6 +55,7 @@ class LoadedClip:
     axis_weight_cm: float = 1.0
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
     glitches: list[Glitch] | None = None  # the source's (`inputs.glitches`; lossy, read with a frame rate)
+    fps: float | None = None  # frames per second (`clip_frame_rate`); None: read without a frame rate
     _scored_frames: tuple = field(default=(None, None), repr=False, compare=False)  # see _originals
 
     @property
@@ -152,6 +153,13 @@ def load_clips(sources: list[ClipSource], representation_name: str | None,
     return [reader.read(source) for source in progress(sources, desc="read", unit="clip")]
 
 
+def clip_frame_rate(motion: Motion, skeleton: Skeleton, fps: float, from_files: bool = True) -> float:
+    """A clip's frame rate: the one its AMC header states, else its ASF's documentation, else `fps`;
+    always `fps` if not `from_files` (`--fps` given)."""
+    stated = (motion.frame_rate or skeleton.frame_rate) if from_files else None
+    return stated or fps
+
+
 class ClipReader:
     """Reads clips for a codec that visits each several times, keeping those that fit a byte budget.
 
@@ -164,10 +172,12 @@ class ClipReader:
     """
 
     def __init__(self, representation_name: str | None, axis_weight_cm: float = 1.0,
-                 budget_bytes: int | None = None, axes_from_positions: bool = False, fps: float | None = None):
+                 budget_bytes: int | None = None, axes_from_positions: bool = False, fps: float | None = None,
+                 fps_from_files: bool = True):
         self.representation_name, self.axis_weight_cm = representation_name, axis_weight_cm
         self.axes_from_positions = axes_from_positions
-        self.budget_bytes, self.fps = budget_bytes, fps  # fps None: glitches are not looked for
+        self.budget_bytes, self.fps = budget_bytes, fps  # fps None: no frame rate, glitches are not looked for
+        self.fps_from_files = fps_from_files
         self._skeletons: dict = {}  # ASF path -> (skeleton, model): small, read once
         self._glitches: dict[ClipSource, list[Glitch]] = {}  # found once per clip, however often it is read
         self._kept: dict[ClipSource, LoadedClip] = {}
@@ -187,11 +197,13 @@ class ClipReader:
             encoded = get_representation(self.representation_name, self.axes_from_positions).forward(model, motion)
         clip = LoadedClip(source, model, motion, encoded, self.representation_name, None, self.axis_weight_cm,
                           self.axes_from_positions)
+        if self.fps is not None:
+            clip.fps = clip_frame_rate(motion, skeleton, self.fps, self.fps_from_files)
         if encoded is not None:  # the joints the error is measured against, by the check's own kinematics
             clip.positions = clip.decode_tail.positions(motion.values)
             clip.glitches = self._glitches.get(source)
-            if clip.glitches is None and self.fps is not None:
-                clip.glitches = find_glitches(skeleton, model, motion, clip.positions, self.fps)
+            if clip.glitches is None and clip.fps is not None:
+                clip.glitches = find_glitches(skeleton, model, motion, clip.positions, clip.fps)
         return clip
 
     def skeleton(self, path) -> tuple:

@@ -14,10 +14,13 @@ from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
 from mocapzip.progress import progress
 
+DEFAULT_FPS = 120.0  # a clip whose files state no frame rate: CMU's and HDM05's
 
-def inspect_paths(paths, asf=None, fps: float = 120.0, check: bool = False) -> dict:
+
+def inspect_paths(paths, asf=None, fps: float | None = None, check: bool = False) -> dict:
     """A JSON-ready report: one row per clip and the totals; with `check`, each clip's glitches
-    (`inputs.glitches`: needs its skeleton). Raises MocapFormatError on bad input."""
+    (`inputs.glitches`: needs its skeleton). Each clip's frame rate is `fps` if given, else the one
+    its files state, else 120 (`inputs.clip.clip_frame_rate`). Raises MocapFormatError on bad input."""
     clips = find_clips(paths, asf=asf, require_skeleton=False)
     if not clips:
         raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, paths)))
@@ -30,11 +33,13 @@ def inspect_paths(paths, asf=None, fps: float = 120.0, check: bool = False) -> d
                 skeletons[clip.asf] = read_asf(clip.asf)
             skeleton = skeletons[clip.asf]
         motion = read_amc(clip.amc, skeleton)
+        rate = fps or motion.frame_rate or (skeleton and skeleton.frame_rate) or DEFAULT_FPS
         rows.append({
             "path": clip.relpath,
             "frames": motion.n_frames,
             "dof": int(motion.values.shape[1]),
-            "seconds": motion.n_frames / fps,
+            "fps": rate,
+            "seconds": motion.n_frames / rate,
             "skeleton": None if clip.asf is None else os.fspath(clip.asf),
             "bytes": os.path.getsize(clip.amc),
         })
@@ -43,7 +48,7 @@ def inspect_paths(paths, asf=None, fps: float = 120.0, check: bool = False) -> d
                 models[clip.asf] = SkeletonModel.from_asf(skeleton)
             model = models[clip.asf]
             positions = forward(model, motion.values, motion).positions
-            rows[-1]["glitches"] = [g.as_dict() for g in find_glitches(skeleton, model, motion, positions, fps)]
+            rows[-1]["glitches"] = [g.as_dict() for g in find_glitches(skeleton, model, motion, positions, rate)]
     total = {
         "clips": len(rows),
         "frames": sum(r["frames"] for r in rows),
@@ -51,4 +56,4 @@ def inspect_paths(paths, asf=None, fps: float = 120.0, check: bool = False) -> d
         "skeletons": len(skeletons),
         "bytes": sum(r["bytes"] for r in rows),
     }
-    return {"fps": fps, "clips": rows, "total": total}
+    return {"fps": fps, "clips": rows, "total": total}  # fps None: each clip's own

@@ -61,11 +61,10 @@ class Bounds:
     max_error_cm: float | None = None  # every joint of every frame
     contact_error_cm: float | None = None  # planted foot joints (`motion.contacts`)
     repair_glitches: bool = False  # the joints a source glitch throws off are not held (`glitches.glitch_mask`)
-    fps: float = 120.0  # the clips' frame rate, for the contacts
 
     @classmethod
     def of(cls, settings) -> "Bounds":
-        return cls(settings.max_error_cm, settings.contact_error_cm, settings.repair_glitches, settings.fps)
+        return cls(settings.max_error_cm, settings.contact_error_cm, settings.repair_glitches)
 
     @property
     def on_joints(self) -> bool:
@@ -131,7 +130,7 @@ def joint_limits(clip, bounds: Bounds, repaired: np.ndarray | None = None) -> np
         return None
     limits = np.full(clip.positions.shape[:2], np.inf if bounds.max_error_cm is None else bounds.max_error_cm)
     if bounds.contact_error_cm is not None:
-        planted = contacts(clip.model, clip.positions, bounds.fps)
+        planted = contacts(clip.model, clip.positions, clip.fps)  # the clip's own rate: contacts are speeds
         limits[planted] = np.minimum(limits[planted], bounds.contact_error_cm)
     if repaired is not None:
         limits[repaired] = np.inf

@@ -12,6 +12,12 @@ import math
 import re
 
 import numpy as np
+
+# §5, `:units length` given as a unit's name: cm per file unit
+NAMED_LENGTHS = {**dict.fromkeys(("m", "meter", "meters", "metre", "metres"), 100.0),
+                 **dict.fromkeys(("cm", "centimeter", "centimeters", "centimetre", "centimetres"), 1.0),
+                 **dict.fromkeys(("mm", "millimeter", "millimeters", "millimetre", "millimetres"), 0.1),
+                 **dict.fromkeys(("in", "inch", "inches"), 2.54)}
 import pywt
 import scipy.fft
 
@@ -255,7 +261,8 @@ class Skeleton:
     def __init__(self, skeleton_text, axes_from_positions):
         units, root, bones, hierarchy = self.parse(skeleton_text)
         self.radians = units.get("angle", "deg").lower().startswith("rad")
-        self.cm_per_unit = 2.54 / number(units.get("length", "1"))
+        length = units.get("length", "1").lower()  # §5: a factor, or a unit's name
+        self.cm_per_unit = NAMED_LENGTHS[length] if length in NAMED_LENGTHS else 2.54 / number(length)
         u = 1.0 if self.radians else DEG
 
         # joints: root, then a pre-order walk through the hierarchy
