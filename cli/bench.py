@@ -60,7 +60,7 @@ def _codecs(values):
 @click.option("--groups", type=click.Path(dir_okay=False), default=None,
               help="Table of clip -> motion class for the per-class report (CSV/TSV with file and class "
                    "columns; default: a MANIFEST.tsv in or above the inputs, else the skeleton).")
-@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
+@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1, show_default="all cores",
               help="Worker processes for mcz's error search.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, allow_dash=True), help="Write the full report as JSON ('-': stdout).")

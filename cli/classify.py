@@ -132,7 +132,7 @@ def _threshold(text: str):
 @click.option("--only", default=None, metavar="A,B,...", help="Keep only these classes (training and test clips).")
 @click.option("--segment", is_flag=True,
               help="Cut each test clip at PPCA change points (Barbic et al.) and classify the pieces, CLIP[first:end].")
-@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
+@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the whole report as JSON.")
 @reports_errors
 def classify(labels, train_inputs, test_inputs, representation, threshold, variance, only, segment, asf, as_json):

@@ -45,7 +45,7 @@ def jobs_option(work: str):
 
 @main.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path())
-@click.option("--asf", type=click.Path(exists=True, dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
+@click.option("--asf", type=click.Path(exists=True, dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Frame rate for durations and the glitch check, for every clip (default: the rate a clip's "
                    "files state, as Vicon Blade's '# Frame Rate: 200.000 fps', else 120).")
@@ -189,7 +189,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
                    "with -c auto the segments of one take can fall in different classes.")
 @click.option("--split", default=None, metavar="R,P,T",
               help="Force the error split between root motion, PCA and temporal coding (shares of --error).")
-@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the one .asf in each AMC's folder).")
+@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Frame rate of every clip, stored in the archive. ASF/AMC have no field for it: by default "
                    "a clip takes the rate its files state (AMC header '# Frame Rate: 200.000 fps', or 'fps:30' in "
@@ -210,8 +210,9 @@ def compress(inputs, output, error_cm, max_error, contact_error, repair_glitches
              asf, fps, jobs, cache_mb, force, skip_bad, quiet, as_json):
     """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
 
-    Each AMC pairs with the one ASF in its folder (or --asf). Inputs are kept; OUTPUT is
-    written atomically and never overwritten without -f.
+    Each AMC pairs with the ASF in its folder (or --asf): copies of one skeleton count as one, and
+    of several different ones an AMC takes the one whose name begins its own (07_01.amc: 07.asf).
+    Inputs are kept; OUTPUT is written atomically and never overwritten without -f.
 
     \b
     Examples:

@@ -1,8 +1,10 @@
 """Finding clips on disk: every AMC under the inputs, each paired with its skeleton (ASF).
 
-An AMC pairs with the one ASF in its own folder, or with the ASF the user names
-(`--asf`). The pairing is decided here, once, so `inspect`, `compress` and `bench`
-agree on what a clip is. Nothing is left out silently: a folder that cannot be listed is an
+An AMC pairs with the ASF the user names (`--asf`), or with the one in its own folder. A folder
+may hold several: copies of one skeleton (CMU ships `07.asf` and `07-walk.asf`, which differ
+only in line ends) count as one; different ones pair each AMC with the ASF whose name begins its
+own (`07_01.amc` with `07.asf`), and a warning says so; an AMC that no name fits is ambiguous.
+The pairing is decided here, once, so `inspect`, `compress` and `bench` agree on what a clip is. Nothing is left out silently: a folder that cannot be listed is an
 error (or, with a `skipped` list, a listed skip), and a named input that is not a regular
 file (a FIFO, a device) is refused before anything opens it.
 """
@@ -71,14 +73,19 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
         if clip.relpath in seen:
             raise MocapFormatError(f"two inputs would be stored as '{clip.relpath}' (also {seen[clip.relpath]})", clip.amc)
         seen[clip.relpath] = clip.amc
-    paired = []
+    paired, folders = [], {}
     for c in clips:
         try:
-            paired.append(ClipSource(c.amc, forced or _skeleton_in_folder(c.amc, require_skeleton), c.relpath))
+            if forced is None and c.amc.parent not in folders:
+                folders[c.amc.parent] = _skeletons_in_folder(c.amc.parent)
+            asf = forced or _skeleton_of(c.amc, folders[c.amc.parent], require_skeleton)
+            paired.append(ClipSource(c.amc, asf, c.relpath))
         except MocapFormatError as exc:
             if skipped is None:
                 raise
             record_skip(skipped, c, exc)
+    for folder, candidates in folders.items():
+        _say_pairings(folder, candidates, [c for c in paired if c.amc.parent == folder])
     return sorted(paired, key=lambda c: c.relpath)
 
 
@@ -115,18 +122,51 @@ def _record(skipped: list, relpath: str, exc: Exception) -> None:
     warnings.warn(f"skipped {relpath}: {error}", stacklevel=4)
 
 
-def _skeleton_in_folder(amc: Path, required: bool) -> Path | None:
-    # Any non-folder .asf counts, so that a FIFO or a dangling link is refused by name when read.
-    candidates = sorted(p for p in amc.parent.iterdir() if _is_asf(p.name) and not p.is_dir())
+def _skeletons_in_folder(folder: Path) -> list[Path]:
+    """The distinct skeletons among the folder's .asf files: of files alike but for their line
+    ends, the first by name. Any non-folder .asf counts, so that a FIFO or a dangling link is
+    refused by name when read (here only regular files are compared)."""
+    candidates = sorted(p for p in folder.iterdir() if _is_asf(p.name) and not p.is_dir())
+    if len(candidates) < 2:
+        return candidates
+    distinct, texts = [], set()
+    for path in candidates:
+        try:
+            check_regular_file(path.stat(), path)
+            text = path.read_bytes().replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+        except (OSError, MocapFormatError):
+            distinct.append(path)  # not readable here: refused by name when the clip is read
+            continue
+        if text not in texts:
+            texts.add(text)
+            distinct.append(path)
+    return distinct
+
+
+def _skeleton_of(amc: Path, candidates: list[Path], required: bool) -> Path | None:
+    """The one distinct skeleton in the AMC's folder, or the one whose name begins the AMC's."""
     if len(candidates) == 1:
         return candidates[0]
+    fitting = [p for p in candidates if amc.stem.lower().startswith(p.stem.lower())]
+    if candidates and fitting:
+        return max(fitting, key=lambda p: len(p.stem))  # 07_01-walk.amc: 07-walk.asf before 07.asf
     if not candidates:
         error = MocapFormatError("no skeleton: no .asf file in its folder (pass --asf FILE)", amc)
     else:
         names = ", ".join(p.name for p in candidates)
-        error = MocapFormatError(f"ambiguous skeleton: {len(candidates)} .asf files in its folder ({names}); "
-                                 "pass --asf FILE", amc)
+        error = MocapFormatError(f"ambiguous skeleton: {len(candidates)} different .asf files in its folder "
+                                 f"({names}), none named like the clip; pass --asf FILE", amc)
     if required:
         raise error
     warnings.warn(str(error), stacklevel=4)
     return None
+
+
+def _say_pairings(folder: Path, candidates: list[Path], clips: list[ClipSource]) -> None:
+    """One warning for a folder of several different skeletons: which AMCs took which."""
+    if len(candidates) < 2 or not clips:
+        return
+    counts = {p: sum(1 for c in clips if c.asf == p) for p in candidates}
+    pairs = ", ".join(f"{p.name} ({n} clip{'' if n == 1 else 's'})" for p, n in counts.items() if n)
+    warnings.warn(f"{folder}: {len(candidates)} different .asf files; each AMC paired with the one whose "
+                  f"name begins its own: {pairs}", stacklevel=3)

@@ -1,6 +1,10 @@
-"""Frame rates the files state (issue 18): ASF/AMC have no field for one, but exporters write it
-(Vicon Blade's AMC header, `fps:30` in an ASF's documentation). A clip takes its files' rate,
-`--fps` overrides every clip, and the archive, `info`, `inspect` and the API report it."""
+"""What real exporters and folders do that a strict reader must still take (issue 18, items 2-3):
+
+- frame rates the files state: ASF/AMC have no field for one, but exporters write it (Vicon
+  Blade's AMC header, `fps:30` in an ASF's documentation). A clip takes its files' rate, `--fps`
+  overrides every clip, and the archive, `info`, `inspect` and the API report it;
+- units named instead of given as factors (`mass kg`, `length m`);
+- folders holding several ASFs: copies of one skeleton, or different ones named like their clips."""
 
 from __future__ import annotations
 
@@ -76,3 +80,33 @@ def test_units_given_by_name_are_read_as_other_readers_read_them(shared_data):
     assert metres.units == {"mass": "kg", "length": "m", "angle": "deg"}
     assert metres.cm_per_unit == 100.0 and inches.cm_per_unit == pytest.approx(2.54 / 0.45)
     assert [b.length for b in metres.bones] == [b.length for b in inches.bones]
+
+
+def test_a_folder_of_several_skeletons_pairs_without_asking_where_nothing_is_ambiguous(shared_data, tmp_path):
+    """CMU ships folders with `07.asf` and `07-walk.asf`, alike but for line ends: one skeleton.
+    Different skeletons pair each AMC with the ASF whose name begins its own, and say so."""
+    cmu07, cmu09 = shared_data / "cmu" / "07", shared_data / "cmu" / "09"
+    copies = tmp_path / "copies"
+    copies.mkdir()
+    (copies / "07.asf").symlink_to(cmu07 / "07.asf")
+    (copies / "07-walk.asf").write_bytes((cmu07 / "07.asf").read_bytes().replace(b"\r\n", b"\n"))
+    (copies / "07_01.amc").symlink_to(cmu07 / "07_01.amc")
+    runner = CliRunner()
+    result = runner.invoke(main, ["compress", str(copies), "-o", str(tmp_path / "a.mcz"), "-q"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(runner.invoke(main, ["info", "--json", str(tmp_path / "a.mcz")]).output)["skeletons"] == 1
+
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    for source in (cmu07 / "07.asf", cmu07 / "07_01.amc", cmu09 / "09.asf", cmu09 / "09_01.amc"):
+        (mixed / source.name).symlink_to(source)
+    with pytest.warns(UserWarning, match=r"2 different .asf files; each AMC paired with the one whose name begins "
+                                         r"its own: 07.asf \(1 clip\), 09.asf \(1 clip\)"):
+        summary = mocapzip.compress(mixed, tmp_path / "b.mcz")
+    assert summary["clips"] == 2
+    with mocapzip.open(tmp_path / "b.mcz") as archive:
+        assert {clip.path: clip.skeleton.path for clip in archive} == {"07_01.amc": "07.asf", "09_01.amc": "09.asf"}
+
+    (mixed / "walk.amc").symlink_to(cmu07 / "07_02.amc")  # no skeleton's name begins it
+    result = runner.invoke(main, ["compress", str(mixed), "-o", str(tmp_path / "c.mcz"), "-q"])
+    assert result.exit_code == 1 and "walk.amc: ambiguous skeleton: 2 different .asf files" in result.output
