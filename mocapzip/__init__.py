@@ -12,8 +12,9 @@ The API (docs/api.md) lives in `mocapzip.api`; its names are loaded on first use
 import os as _os
 
 __version__ = "0.1.0"
-__all__ = ["ArchiveError", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError", "__version__",
-           "compress", "decompress", "joint_positions", "read_amc", "read_asf", "write_amc", "write_asf"]
+__all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError",
+           "__version__", "compress", "decompress", "joint_positions", "read_amc", "read_asf", "read_bvh", "write_amc",
+           "write_asf", "write_bvh"]
 _API = {*__all__, "open"} - {"__version__"}  # `open` is left out of __all__: a star import keeps the built-in
 
 

@@ -1,5 +1,5 @@
 """mocapzip from Python (docs/api.md): open an archive and read its clips, compress and
-decompress, read and write ASF/AMC files.
+decompress, read and write ASF/AMC and BVH files.
 
     import mocapzip
     with mocapzip.open("db.mcz") as archive:
@@ -28,13 +28,15 @@ from mocapzip.archive.settings import SettingsError
 from mocapzip.defaults import MAX_TO_MEAN
 from mocapzip.formats.amc import Motion, parse_amc, read_amc, write_amc
 from mocapzip.formats.asf import Skeleton, parse_asf, read_asf, write_asf
+from mocapzip.formats.bvh import Bvh, read_bvh, write_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
 
-__all__ = ["ArchiveError", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError", "compress",
-           "decompress", "joint_positions", "read_amc", "read_asf", "write_amc", "write_asf"]
+__all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError",
+           "compress", "decompress", "joint_positions", "read_amc", "read_asf", "read_bvh", "write_amc", "write_asf",
+           "write_bvh"]
 # also `open`, left out of __all__ so that `from mocapzip import *` does not hide the built-in
 
 

@@ -1,0 +1,333 @@
+"""Biovision Hierarchy (BVH): read and write, exactly.
+
+A BVH file is a HIERARCHY of joints (each an OFFSET from its parent, the CHANNELS the motion
+gives it, and an optional End Site) and a MOTION section: `Frames:`, `Frame Time:`, then one
+line of channel values per frame. Exporters differ in layout: 3 rotation channels per joint and
+position channels on the root (CMU's conversion, mixed CRLF/LF line ends), or 6 channels on every
+joint and an extra root above the hips (Bandai Namco's game-studio export), any rotation order.
+
+Strict: every fault raises MocapFormatError naming file and line (a brace missing, a channel
+name that is no channel, a frame line with too few values, `Frames:` disagreeing with the lines,
+a number that is no finite number). Exact: a file read and written back is the same bytes. A
+Bvh read from a file keeps its text as read (`header`, `frames_text`) and its values read-only;
+to write other values, make a new one (`dataclasses.replace(bvh, values=..., frames_text=None)`):
+they are written in the number style the file used (`BvhStyle`, found on its first frame).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import MAX_ABS_VALUE, check_text, detect_encoding, number, read_regular_file
+from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP
+
+CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
+_CHANNEL_NAMES = {name.lower(): name for name in CHANNELS}
+NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17")  # tried in this order, on reading
+
+
+@dataclass(frozen=True, eq=False)
+class BvhJoint:
+    """One joint: its parent (an index into `Bvh.joints`, -1 for a root), offset from that
+    parent in the file's units, channels in file order, and its End Site's offset, if any."""
+
+    name: str
+    parent: int
+    offset: np.ndarray  # (3,)
+    channels: tuple[str, ...]  # e.g. ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+    end_site: np.ndarray | None = None  # (3,)
+
+
+@dataclass(frozen=True)
+class BvhStyle:
+    """How a file writes its frames: numbers ("repr": Python's shortest repr, as CMU's conversion;
+    "g<p>": C's %.<p>g, as most exporters), the separator between values, what ends a frame's
+    last value (a trailing blank, or nothing) and the line end."""
+
+    number: str = "g6"
+    separator: str = " "
+    trailing: str = ""
+    line_end: str = "\n"
+
+    def format(self, values: np.ndarray) -> str:
+        """The frame lines of `values` (frames, channels), in this style."""
+        if self.number == "repr":
+            texts = [repr(v) for v in values.ravel().tolist()]
+        else:
+            spec = f".{int(self.number[1:])}g"
+            texts = [format(v, spec) for v in values.ravel().tolist()]
+        width = values.shape[1] if values.ndim == 2 else 0
+        if width == 0:
+            return (self.trailing + self.line_end) * values.shape[0]
+        ending = self.trailing + self.line_end
+        lines = [self.separator.join(texts[i : i + width]) for i in range(0, len(texts), width)]
+        return ending.join(lines) + ending if lines else ""
+
+
+@dataclass
+class Bvh:
+    """A BVH clip: the skeleton (`joints`), the frame time, and the values (frames, channels) in
+    the order of the joints' CHANNELS. Read from a file, `header` and `frames_text` are its text,
+    which `format_bvh` gives back; a Bvh built in code leaves them None (written out, in `style`)."""
+
+    joints: list[BvhJoint]
+    frame_time: float
+    values: np.ndarray
+    header: str | None = None  # the text before the first frame, verbatim
+    style: BvhStyle = BvhStyle()
+    frames_text: str | None = None  # the frame lines as read (None: written from `values` in `style`)
+    encoding: str = "utf-8"
+    path: str | None = None
+
+    @property
+    def fps(self) -> float:
+        return 1.0 / self.frame_time
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.values.shape[0])
+
+    def columns(self) -> list[tuple[int, str]]:
+        """(joint index, channel name) of each column of `values`."""
+        return [(j, channel) for j, joint in enumerate(self.joints) for channel in joint.channels]
+
+
+def read_bvh(path: str | os.PathLike) -> Bvh:
+    """Read and check the BVH file at `path` (MocapFormatError with file and line on any fault)."""
+    return parse_bvh(read_regular_file(path), os.fspath(path))
+
+
+def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
+    """A BVH file's bytes -> Bvh; see the module doc for what is checked."""
+    data = check_text(data, path)
+    encoding = detect_encoding(data)
+    text = data.decode(encoding)
+    parser = _Parser(text, path)
+    joints = parser.hierarchy()
+    n_frames, frame_time, header_end, first_line = parser.motion_header()
+    width = sum(len(joint.channels) for joint in joints)
+    if n_frames * max(width, 1) > MAX_VALUES_PER_CLIP:
+        raise MocapFormatError(f"{n_frames} frames of {width} values are more than the {MAX_VALUES_PER_CLIP:,} "
+                               "a clip may hold", path, first_line - 1)
+    frames_text = text[header_end:]
+    values = _frame_values(frames_text, n_frames, width, path, first_line)
+    values.flags.writeable = False  # the text kept beside them must stay what they say
+    return Bvh(joints, frame_time, values, text[:header_end], _style_of(frames_text, values), frames_text, encoding,
+               path)
+
+
+def format_bvh(bvh: Bvh) -> str:
+    """The text of `bvh`: its header and frames as read (when it was read), else written out."""
+    header = bvh.header if bvh.header is not None else _canonical_header(bvh)
+    frames = bvh.frames_text if bvh.frames_text is not None else bvh.style.format(bvh.values)
+    return header + frames
+
+
+def write_bvh(bvh: Bvh, path: str | os.PathLike) -> None:
+    """Write `bvh` to `path` (see `format_bvh`), in the encoding it was read in."""
+    with open(path, "wb") as file:
+        file.write(format_bvh(bvh).encode(bvh.encoding))
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+class _Parser:
+    """The hierarchy, read word by word (any line layout: `{` on its own line or not), and
+    the three lines that open MOTION."""
+
+    def __init__(self, text: str, path: str | None):
+        self.text, self.path = text, path
+        self.words: list[tuple[str, int]] = []  # (word, line) of the hierarchy
+        self.position = 0
+        self.motion_line: int | None = None  # the line of MOTION
+        for line_number, line in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), start=1):
+            if line.strip().upper() == "MOTION":
+                self.motion_line = line_number
+                break
+            self.words += [(word, line_number) for word in line.split()]
+
+    def fail(self, message: str, line: int | None) -> MocapFormatError:
+        return MocapFormatError(message, self.path, line)
+
+    def next(self, expected: str | None = None) -> tuple[str, int]:
+        if self.position >= len(self.words):
+            last = self.words[-1][1] if self.words else 1
+            raise self.fail(f"the hierarchy ends early{f', expected {expected!r}' if expected else ''}", last)
+        word, line = self.words[self.position]
+        self.position += 1
+        if expected is not None and word.upper() != expected.upper():
+            raise self.fail(f"expected {expected!r}, got {word[:40]!r}", line)
+        return word, line
+
+    def hierarchy(self) -> list[BvhJoint]:
+        self.next("HIERARCHY")
+        joints: list[BvhJoint] = []
+        while self.position < len(self.words):
+            self.next("ROOT")
+            self.joint(joints, -1)
+        if not joints:
+            raise self.fail("no ROOT joint", self.words[-1][1] if self.words else 1)
+        if self.motion_line is None:
+            raise self.fail("no MOTION section", self.words[-1][1])
+        return joints
+
+    def joint(self, joints: list[BvhJoint], parent: int) -> None:
+        name, line = self.next()
+        if name in ("{", "}"):
+            raise self.fail("a joint needs a name", line)
+        if any(j.name == name for j in joints):
+            raise self.fail(f"joint {name!r} appears twice", line)
+        if len(joints) >= MAX_BONES_PER_SKELETON:
+            raise self.fail(f"more than {MAX_BONES_PER_SKELETON} joints", line)
+        self.next("{")
+        self.next("OFFSET")
+        offset = self.numbers(3, "OFFSET")
+        channels: tuple[str, ...] = ()
+        index = len(joints)
+        joints.append(BvhJoint(name, parent, offset, channels))
+        end_site = None
+        while True:
+            word, line = self.next()
+            key = word.upper()
+            if key == "CHANNELS":
+                if channels:
+                    raise self.fail(f"joint {name!r} has a second CHANNELS line", line)
+                count_word, count_line = self.next()
+                if not count_word.isdigit() or not 1 <= int(count_word) <= 6:
+                    raise self.fail(f"CHANNELS count must be 1 to 6, got {count_word[:20]!r}", count_line)
+                names = [self.next() for _ in range(int(count_word))]
+                bad = [(w, n) for w, n in names if w.lower() not in _CHANNEL_NAMES]
+                if bad:
+                    raise self.fail(f"unknown channel {bad[0][0][:30]!r} (expected {', '.join(CHANNELS)})", bad[0][1])
+                channels = tuple(w for w, _ in names)
+                if len({c.lower() for c in channels}) != len(channels):
+                    raise self.fail(f"joint {name!r} names a channel twice", line)
+                joints[index] = BvhJoint(name, parent, offset, channels)
+            elif key == "JOINT":
+                self.joint(joints, index)
+            elif key == "END":
+                self.next("Site")
+                self.next("{")
+                self.next("OFFSET")
+                if end_site is not None:
+                    raise self.fail(f"joint {name!r} has a second End Site", line)
+                end_site = self.numbers(3, "End Site OFFSET")
+                self.next("}")
+            elif key == "}":
+                joints[index] = BvhJoint(name, parent, offset, channels, end_site)
+                return
+            else:
+                raise self.fail(f"unexpected {word[:40]!r} in joint {name!r} (expected CHANNELS, JOINT, "
+                                "End Site or '}')", line)
+
+    def numbers(self, count: int, what: str) -> np.ndarray:
+        values = []
+        for _ in range(count):
+            word, line = self.next()
+            values.append(number(word, self.path, line, what=what))
+        return np.array(values)
+
+    def motion_header(self) -> tuple[int, float, int, int]:
+        """(frames, frame time, offset of the first frame in the text, its line)."""
+        lines = self.text.splitlines(keepends=True)  # CRLF, LF or CR; form feeds are not in real files
+        index = self.motion_line  # the 1-based MOTION line, so `lines[index]` is the one after it
+        fields = {}
+        for key in ("frames:", "frame time:"):
+            if index >= len(lines):
+                raise self.fail(f"MOTION needs a '{key.capitalize()}' line", index)
+            line = lines[index].strip()
+            if not line.lower().startswith(key):
+                raise self.fail(f"expected '{key.capitalize()} ...', got {line[:40]!r}", index + 1)
+            fields[key] = (line[len(key):].strip(), index + 1)
+            index += 1
+        word, line = fields["frames:"]
+        if not word.isdigit() or int(word) > MAX_FRAMES_PER_CLIP:
+            raise self.fail(f"Frames: must be a count up to {MAX_FRAMES_PER_CLIP:,}, got {word[:30]!r}", line)
+        word, time_line = fields["frame time:"]
+        frame_time = number(word, self.path, time_line, what="Frame Time")
+        if not frame_time > 0:
+            raise self.fail(f"Frame Time must be above 0 seconds, got {word[:30]!r}", time_line)
+        return int(fields["frames:"][0]), frame_time, sum(len(l) for l in lines[:index]), index + 1
+
+
+def _frame_values(frames_text: str, n_frames: int, width: int, path: str | None, first_line: int) -> np.ndarray:
+    """The (frames, width) values of the frame lines, each line checked to hold `width` numbers
+    (MocapFormatError naming the first line that does not)."""
+    lines = frames_text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    while lines and not lines[-1].strip():  # blank lines after the last frame (and the final line end)
+        lines.pop()
+    if len(lines) != n_frames:
+        raise MocapFormatError(f"Frames: says {n_frames}, but {len(lines)} frame lines follow", path, first_line - 2)
+    counts = [len(line.split()) for line in lines]
+    if counts.count(width) != n_frames:
+        f = next(f for f, count in enumerate(counts) if count != width)
+        raise MocapFormatError(f"frame {f + 1} has {counts[f]} values, the hierarchy's channels need {width}",
+                               path, first_line + f)
+    try:  # every word at once; a word float() takes but the format does not ("1_000") is caught below
+        values = np.array(frames_text.split(), dtype=np.float64).reshape(n_frames, width)
+    except ValueError:
+        values = None
+    if values is not None and np.all(np.abs(values) <= MAX_ABS_VALUE) and _plain_numbers(frames_text):
+        return values
+    for f, line in enumerate(lines):  # the slow path: name the first word at fault
+        for word in line.split():
+            number(word, path, first_line + f)
+    raise AssertionError("unreachable: a frame value was refused, but no word is at fault")
+
+
+def _plain_numbers(frames_text: str) -> bool:
+    """Whether the frame lines hold nothing but digits, signs, points, exponents and blanks
+    (float() would also take '1_000', 'nan' and 'infinity')."""
+    return not frames_text.translate(_NUMBER_CHARACTERS).strip()
+
+
+_NUMBER_CHARACTERS = str.maketrans("", "", "0123456789+-.eE \t\r\n")
+
+
+def _style_of(frames_text: str, values: np.ndarray) -> BvhStyle:
+    """The style that writes the first frame line back from its values (the most common one,
+    %g with 6 digits, where none does): how `values` changed in code are written."""
+    first = frames_text.split("\n", 1)[0]
+    line_end = "\r\n" if first.endswith("\r") else "\n"
+    first = first.rstrip("\r")
+    trailing = first[len(first.rstrip(" \t")):]
+    separator = "\t" if "\t" in first.strip() and " " not in first.strip() else " "
+    for style in NUMBER_STYLES:
+        candidate = BvhStyle(style, separator, trailing, line_end)
+        if len(values) and candidate.format(values[:1]) == first + line_end:
+            return candidate
+    return BvhStyle("g6", separator, trailing, line_end)
+
+
+def _canonical_header(bvh: Bvh) -> str:
+    """HIERARCHY and the MOTION lines of a Bvh built in code: tabs, LF, numbers as `repr`."""
+    out = ["HIERARCHY"]
+    children: dict[int, list[int]] = {}
+    for j, joint in enumerate(bvh.joints):
+        children.setdefault(joint.parent, []).append(j)
+
+    def numbers(values) -> str:
+        return " ".join(repr(float(v)) for v in values)
+
+    def write(j: int, depth: int) -> None:
+        joint, pad = bvh.joints[j], "\t" * depth
+        out.append(f"{pad}{'ROOT' if joint.parent < 0 else 'JOINT'} {joint.name}")
+        out.append(f"{pad}{{")
+        out.append(f"{pad}\tOFFSET {numbers(joint.offset)}")
+        if joint.channels:
+            out.append(f"{pad}\tCHANNELS {len(joint.channels)} {' '.join(joint.channels)}")
+        for child in children.get(j, []):
+            write(child, depth + 1)
+        if joint.end_site is not None:
+            out.extend([f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {numbers(joint.end_site)}", f"{pad}\t}}"])
+        out.append(f"{pad}}}")
+
+    for root in children.get(-1, []):
+        write(root, 0)
+    out.extend(["MOTION", f"Frames: {bvh.n_frames}", f"Frame Time: {bvh.frame_time!r}"])
+    return "\n".join(out) + "\n"

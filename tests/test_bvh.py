@@ -1,0 +1,104 @@
+"""BVH read and write (formats/bvh.py): every shared BVH file comes back byte for byte, and
+damaged ones are refused in one error naming file and line."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from mocapzip.formats.bvh import Bvh, BvhStyle, format_bvh, parse_bvh, read_bvh
+from mocapzip.formats.errors import MocapFormatError
+
+
+def shared_bvh_files(data):
+    return sorted(data.glob("cmu-bvh/*/*.bvh")) + sorted(data.glob("bvh-bandai/*.bvh"))
+
+
+def test_every_shared_bvh_file_is_written_back_byte_for_byte(shared_data):
+    files = shared_bvh_files(shared_data)
+    assert len(files) == 178
+    styles = set()
+    for path in files:
+        raw = path.read_bytes()
+        bvh = read_bvh(path)
+        assert format_bvh(bvh).encode(bvh.encoding) == raw, path
+        # and the values alone, in the style found on the first frame, make every frame line again
+        assert bvh.style.format(bvh.values) == bvh.frames_text, path
+        styles.add(bvh.style)
+        assert bvh.values.shape == (bvh.n_frames, sum(len(j.channels) for j in bvh.joints))
+    # CMU's conversion prints Python's repr; the studio export C's %g with a blank after each frame
+    assert styles == {BvhStyle("repr", " ", "", "\n"), BvhStyle("g6", " ", " ", "\n")}
+
+
+def test_what_the_two_exporters_hold(shared_data):
+    cmu = read_bvh(shared_data / "cmu-bvh" / "10" / "10_01.bvh")
+    assert (cmu.joints[0].name, cmu.n_frames, round(cmu.fps, 3)) == ("hip", 802, 120.0)
+    assert cmu.joints[0].channels == ("Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation")
+    assert {len(j.channels) for j in cmu.joints[1:]} == {3}
+    bandai = read_bvh(shared_data / "bvh-bandai" / "dataset-1_bow_active_001.bvh")
+    assert [j.name for j in bandai.joints[:2]] == ["joint_Root", "Hips"] and round(bandai.fps, 3) == 30.0
+    assert {len(j.channels) for j in bandai.joints} == {6}  # positions and rotations on every joint
+    assert bandai.joints[1].parent == 0 and sum(j.end_site is not None for j in bandai.joints) >= 5
+
+
+def test_a_bvh_built_in_code_is_written_so_that_it_reads_back_the_same(shared_data):
+    read = read_bvh(shared_data / "bvh-bandai" / "dataset-1_bow_active_001.bvh")
+    with pytest.raises(ValueError, match="read-only"):  # the frame text kept beside them must stay true
+        read.values[0, 0] = 1.0
+    moved = replace(read, values=read.values + 1.0, frames_text=None)
+    assert parse_bvh(format_bvh(moved).encode(), "moved.bvh").values[0, 0] == read.values[0, 0] + 1.0
+    built = Bvh(read.joints, read.frame_time, read.values)
+    again = parse_bvh(format_bvh(built).encode(), "built.bvh")
+    assert np.array_equal(again.values, read.values) and again.frame_time == read.frame_time
+    assert [(j.name, j.parent, j.channels) for j in again.joints] == [(j.name, j.parent, j.channels) for j in read.joints]
+    assert all(np.array_equal(a.offset, b.offset) for a, b in zip(again.joints, read.joints))
+
+
+def damaged(data, old: bytes, new: bytes, count: int = 1) -> bytes:
+    text = (data / "cmu-bvh" / "10" / "10_03.bvh").read_bytes()
+    assert old in text
+    return text.replace(old, new, count)
+
+
+@pytest.mark.parametrize("old, new, message, line", [
+    (b"HIERARCHY", b"HIERARCHIE", "expected 'HIERARCHY', got 'HIERARCHIE'", 1),
+    (b"Zrotation Xrotation Yrotation", b"Zrotation Xrotation Wrotation", "unknown channel 'Wrotation'", 9),
+    (b"CHANNELS 3", b"CHANNELS 7", "CHANNELS count must be 1 to 6, got '7'", 9),
+    (b"OFFSET 0 20.6881 -0.73152", b"OFFSET 0 20.6881 nan", "OFFSET is not finite: 'nan'", 8),
+    (b"JOINT abdomen", b"JOINT hip", "joint 'hip' appears twice", 6),
+    (b"Frames:\t363", b"Frames:\t362", "Frames: says 362, but 363 frame lines follow", 274),
+    (b"Frame Time:\t0.00833333", b"Frame Time:\t0", "Frame Time must be above 0 seconds", 275),
+    (b"MOTION", b"MOTIONS", "expected 'ROOT', got 'MOTIONS'", 273),
+    (b"End Site", b"End Sight", "expected 'Site', got 'Sight'", 26),
+])
+def test_a_damaged_file_is_refused_naming_file_and_line(shared_data, old, new, message, line):
+    with pytest.raises(MocapFormatError) as caught:
+        parse_bvh(damaged(shared_data, old, new), "10_03.bvh")
+    assert caught.value.message.startswith(message), caught.value.message
+    if line is not None:
+        assert caught.value.line == line and caught.value.path == "10_03.bvh"
+
+
+def test_a_bad_frame_is_named_by_its_line(shared_data):
+    text = (shared_data / "cmu-bvh" / "10" / "10_03.bvh").read_bytes()
+    lines = text.split(b"\n")
+    first = next(i for i, line in enumerate(lines) if line.startswith(b"Frame Time")) + 1
+    short = lines.copy()
+    short[first + 3] = short[first + 3].rsplit(b" ", 1)[0]
+    with pytest.raises(MocapFormatError, match="frame 4 has 131 values, the hierarchy's channels need 132") as caught:
+        parse_bvh(b"\n".join(short), "10_03.bvh")
+    assert caught.value.line == first + 4
+    bad = lines.copy()
+    bad[first + 9] = bad[first + 9].replace(b" ", b" 1x2 ", 1).rsplit(b" ", 1)[0]
+    with pytest.raises(MocapFormatError, match="not a number: '1x2'") as caught:
+        parse_bvh(b"\n".join(bad), "10_03.bvh")
+    assert caught.value.line == first + 10
+    for word, message in ((b"1_000", "not a number: '1_000'"), (b"inf", "value is not finite: 'inf'"),
+                          (b"1e400", "value 1e400 is out of range")):
+        bad = lines.copy()
+        bad[first + 2] = bad[first + 2].replace(b" ", b" " + word + b" ", 1).rsplit(b" ", 1)[0]
+        with pytest.raises(MocapFormatError, match=message) as caught:
+            parse_bvh(b"\n".join(bad), "10_03.bvh")
+        assert caught.value.line == first + 3
