@@ -11,23 +11,25 @@ name that is no channel, a frame line with too few values, `Frames:` disagreeing
 a number that is no finite number). Exact: a file read and written back is the same bytes. A
 Bvh read from a file keeps its text as read (`header`, `frames_text`) and its values read-only;
 to write other values, make a new one (`dataclasses.replace(bvh, values=..., frames_text=None)`):
-they are written in the number style the file used (`BvhStyle`, found on its first frame).
+they are written in the number style the file used (`BvhStyle`, found on a sample of its frames).
 """
 
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import MAX_ABS_VALUE, check_text, detect_encoding, number, read_regular_file
+from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, check_text, detect_encoding, number,
+                                   read_regular_file)
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP
 
 CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 _CHANNEL_NAMES = {name.lower(): name for name in CHANNELS}
-NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17")  # tried in this order, on reading
+NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17")  # tried in this order (`_style_of`)
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,7 +114,7 @@ def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
     width = sum(len(joint.channels) for joint in joints)
     if n_frames * max(width, 1) > MAX_VALUES_PER_CLIP:
         raise MocapFormatError(f"{n_frames} frames of {width} values are more than the {MAX_VALUES_PER_CLIP:,} "
-                               "a clip may hold", path, first_line - 1)
+                               "a clip may hold", path, first_line - 2)
     frames_text = text[header_end:]
     values = _frame_values(frames_text, n_frames, width, path, first_line)
     values.flags.writeable = False  # the text kept beside them must stay what they say
@@ -121,10 +123,29 @@ def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
 
 
 def format_bvh(bvh: Bvh) -> str:
-    """The text of `bvh`: its header and frames as read (when it was read), else written out."""
-    header = bvh.header if bvh.header is not None else _canonical_header(bvh)
-    frames = bvh.frames_text if bvh.frames_text is not None else bvh.style.format(bvh.values)
-    return header + frames
+    """The text of `bvh`: as read, when it was read and its frames are unchanged; else its frames
+    written from the values, in `style`, after its header (as read, with `Frames:` and
+    `Frame Time:` saying what the values are) or a header written out."""
+    if bvh.header is None:
+        return _canonical_header(bvh) + bvh.style.format(bvh.values)
+    if bvh.frames_text is not None:
+        return bvh.header + bvh.frames_text
+    header = _FRAMES.sub(lambda m: f"{m.group(1)}{bvh.n_frames}", bvh.header, count=1)
+    header = _FRAME_TIME.sub(lambda m: m.group(0) if float(m.group(2)) == bvh.frame_time
+                             else f"{m.group(1)}{bvh.frame_time!r}", header, count=1)
+    return header + bvh.style.format(bvh.values)
+
+
+_FRAMES = re.compile(r"^([ \t]*Frames:[ \t]*)(\d+)", re.IGNORECASE | re.MULTILINE)
+_FRAME_TIME = re.compile(r"^([ \t]*Frame Time:[ \t]*)(\S+)", re.IGNORECASE | re.MULTILINE)
+
+
+def _lines_with_ends(text: str) -> list[str]:
+    """The lines of `text` with their ends; CRLF, LF and CR end a line, nothing else (as the
+    hierarchy's words are read, so line numbers agree)."""
+    parts = re.split(r"(\r\n|\r|\n)", text)
+    return [parts[i] + (parts[i + 1] if i + 1 < len(parts) else "") for i in range(0, len(parts), 2)
+            if parts[i] or i + 1 < len(parts)]
 
 
 def write_bvh(bvh: Bvh, path: str | os.PathLike) -> None:
@@ -198,7 +219,7 @@ class _Parser:
                 if channels:
                     raise self.fail(f"joint {name!r} has a second CHANNELS line", line)
                 count_word, count_line = self.next()
-                if not count_word.isdigit() or not 1 <= int(count_word) <= 6:
+                if not (count_word.isascii() and count_word.isdigit()) or not 1 <= int(count_word) <= 6:
                     raise self.fail(f"CHANNELS count must be 1 to 6, got {count_word[:20]!r}", count_line)
                 names = [self.next() for _ in range(int(count_word))]
                 bad = [(w, n) for w, n in names if w.lower() not in _CHANNEL_NAMES]
@@ -234,7 +255,7 @@ class _Parser:
 
     def motion_header(self) -> tuple[int, float, int, int]:
         """(frames, frame time, offset of the first frame in the text, its line)."""
-        lines = self.text.splitlines(keepends=True)  # CRLF, LF or CR; form feeds are not in real files
+        lines = _lines_with_ends(self.text)
         index = self.motion_line  # the 1-based MOTION line, so `lines[index]` is the one after it
         fields = {}
         for key in ("frames:", "frame time:"):
@@ -246,12 +267,13 @@ class _Parser:
             fields[key] = (line[len(key):].strip(), index + 1)
             index += 1
         word, line = fields["frames:"]
-        if not word.isdigit() or int(word) > MAX_FRAMES_PER_CLIP:
+        if not (word.isascii() and word.isdigit()) or int(word) > MAX_FRAMES_PER_CLIP:
             raise self.fail(f"Frames: must be a count up to {MAX_FRAMES_PER_CLIP:,}, got {word[:30]!r}", line)
         word, time_line = fields["frame time:"]
         frame_time = number(word, self.path, time_line, what="Frame Time")
-        if not frame_time > 0:
-            raise self.fail(f"Frame Time must be above 0 seconds, got {word[:30]!r}", time_line)
+        if not 1 / MAX_FRAME_RATE <= frame_time <= 1 / MIN_FRAME_RATE:
+            raise self.fail(f"Frame Time must be from {1 / MAX_FRAME_RATE:g} to {1 / MIN_FRAME_RATE:g} seconds "
+                            f"(a rate of {MIN_FRAME_RATE:g} to {MAX_FRAME_RATE:,.0f} fps), got {word[:30]!r}", time_line)
         return int(fields["frames:"][0]), frame_time, sum(len(l) for l in lines[:index]), index + 1
 
 
@@ -290,18 +312,23 @@ _NUMBER_CHARACTERS = str.maketrans("", "", "0123456789+-.eE \t\r\n")
 
 
 def _style_of(frames_text: str, values: np.ndarray) -> BvhStyle:
-    """The style that writes the first frame line back from its values (the most common one,
-    %g with 6 digits, where none does): how `values` changed in code are written."""
-    first = frames_text.split("\n", 1)[0]
-    line_end = "\r\n" if first.endswith("\r") else "\n"
-    first = first.rstrip("\r")
-    trailing = first[len(first.rstrip(" \t")):]
-    separator = "\t" if "\t" in first.strip() and " " not in first.strip() else " "
+    """The style that writes a sample of the frame lines (up to 16, spread over the clip) back from
+    their values, tried in NUMBER_STYLES order; where none does, Python's repr, which keeps every
+    value exactly. It is how values changed in code are written."""
+    lines = _lines_with_ends(frames_text)[: len(values)]
+    if not lines:
+        return BvhStyle()
+    first = lines[0]
+    line_end = first[len(first.rstrip("\r\n")):] or "\n"
+    body = first.rstrip("\r\n")
+    trailing = body[len(body.rstrip(" \t")):]
+    separator = "\t" if "\t" in body.strip() and " " not in body.strip() else " "
+    sample = sorted({round(k * (len(lines) - 1) / 15) for k in range(16)})
     for style in NUMBER_STYLES:
         candidate = BvhStyle(style, separator, trailing, line_end)
-        if len(values) and candidate.format(values[:1]) == first + line_end:
+        if all(candidate.format(values[f : f + 1]).rstrip("\r\n") == lines[f].rstrip("\r\n") for f in sample):
             return candidate
-    return BvhStyle("g6", separator, trailing, line_end)
+    return BvhStyle("repr", separator, trailing, line_end)
 
 
 def _canonical_header(bvh: Bvh) -> str:

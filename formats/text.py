@@ -163,17 +163,19 @@ MAX_FRAME_RATE = 100_000.0  # frames per second: far above any capture system, b
 # How exporters state a frame rate in a file that has no field for it: Vicon Blade's AMC header
 # `# Frame Rate: 200.000 fps`, and `fps:30` / `fps = 30` in an ASF's :documentation.
 _STATED_RATES = (re.compile(r"^#\s*frame\s*rate\s*[:=]\s*(\d+(?:\.\d*)?|\.\d+)\s*(?:fps|hz)?\s*$", re.IGNORECASE),
-                 re.compile(r"(?:^|\s)fps\s*[:=]\s*(\d+(?:\.\d*)?|\.\d+)(?:\s|$)", re.IGNORECASE))
+                 re.compile(r"^#?\s*fps\s*[:=]\s*(\d+(?:\.\d*)?|\.\d+)\s*$", re.IGNORECASE))
+MIN_FRAME_RATE = 1.0  # frames per second: a stated rate below is no capture rate
 
 
 def stated_frame_rate(lines) -> float | None:
     """The frame rate the first of `lines` that states one gives, in frames per second, or None.
 
     ASF and AMC have no field for it (readers assume one: 120 Hz for CMU), but exporters write
-    it in a comment or the documentation; a rate of 0 or above MAX_FRAME_RATE is no rate."""
+    it in a comment or the documentation, on a line of its own; a rate outside [MIN_FRAME_RATE,
+    MAX_FRAME_RATE] is no rate."""
     for line in lines:
         for pattern in _STATED_RATES:
             match = pattern.search(line.strip())
-            if match and 0 < float(match.group(1)) <= MAX_FRAME_RATE:
+            if match and MIN_FRAME_RATE <= float(match.group(1)) <= MAX_FRAME_RATE:
                 return float(match.group(1))
     return None

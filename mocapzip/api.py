@@ -209,9 +209,12 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     `contact_error`: the bound on planted foot joints. `lossless`: every AMC value back exactly
     (then no error or bound may be given). `asf`: the skeleton of AMC files that have none beside
     them; `skip_bad`: leave out clips that cannot be read, listed in the summary. Other keywords
-    are fields of `mocapzip.archive.Settings` (representation="positions", fps=60, ...). An
+    are fields of `mocapzip.archive.Settings` (representation="positions", ...); `fps=60` sets every
+    clip's frame rate, as `--fps` (by default a clip takes the rate its files state, else 120). An
     existing `output` is replaced only with `force`.
     """
+    if "fps" in options:  # as `--fps`: every clip at this rate, whatever its files state
+        options.setdefault("fps_from_files", False)
     clashing = sorted(set(options) & set(_KEYWORD_FIELDS))
     if clashing:
         raise SettingsError(f"give {clashing[0]} as {_KEYWORD_FIELDS[clashing[0]]}=")

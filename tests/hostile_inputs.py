@@ -165,7 +165,7 @@ def build(root: Path, data: Path) -> list[Case]:
     add(Case("folder_without_asf", ["."], AMC_NAME, "no skeleton: no .asf file in its folder", inspect_warns=True),
         {AMC_NAME: amc_bytes})
     # two different skeletons, neither named like the clip (copies of one skeleton count as one)
-    add(Case("two_asf_no_option", ["."], AMC_NAME, "ambiguous skeleton: 2 different .asf files", inspect_warns=True),
+    add(Case("two_asf_no_option", ["."], AMC_NAME, "ambiguous skeleton: 2 different skeletons", inspect_warns=True),
         {"a.asf": asf_bytes, "b.asf": b"# another skeleton\n" + asf_bytes, AMC_NAME: amc_bytes})
 
     def unreadable(path: Path) -> None:

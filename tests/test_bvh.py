@@ -49,6 +49,9 @@ def test_a_bvh_built_in_code_is_written_so_that_it_reads_back_the_same(shared_da
         read.values[0, 0] = 1.0
     moved = replace(read, values=read.values + 1.0, frames_text=None)
     assert parse_bvh(format_bvh(moved).encode(), "moved.bvh").values[0, 0] == read.values[0, 0] + 1.0
+    shorter = replace(read, values=read.values[:10], frame_time=0.02, frames_text=None)  # Frames and Frame Time follow
+    again = parse_bvh(format_bvh(shorter).encode(), "shorter.bvh")
+    assert again.n_frames == 10 and again.frame_time == 0.02 and np.array_equal(again.values, read.values[:10])
     built = Bvh(read.joints, read.frame_time, read.values)
     again = parse_bvh(format_bvh(built).encode(), "built.bvh")
     assert np.array_equal(again.values, read.values) and again.frame_time == read.frame_time
@@ -69,7 +72,9 @@ def damaged(data, old: bytes, new: bytes, count: int = 1) -> bytes:
     (b"OFFSET 0 20.6881 -0.73152", b"OFFSET 0 20.6881 nan", "OFFSET is not finite: 'nan'", 8),
     (b"JOINT abdomen", b"JOINT hip", "joint 'hip' appears twice", 6),
     (b"Frames:\t363", b"Frames:\t362", "Frames: says 362, but 363 frame lines follow", 274),
-    (b"Frame Time:\t0.00833333", b"Frame Time:\t0", "Frame Time must be above 0 seconds", 275),
+    (b"Frame Time:\t0.00833333", b"Frame Time:\t0", "Frame Time must be from 1e-05 to 1 seconds", 275),
+    (b"Frames:\t363", "Frames:\t\u00b2".encode(), "Frames: must be a count", 274),
+    (b"CHANNELS 3", "CHANNELS \u00b3".encode(), "CHANNELS count must be 1 to 6", 9),
     (b"MOTION", b"MOTIONS", "expected 'ROOT', got 'MOTIONS'", 273),
     (b"End Site", b"End Sight", "expected 'Site', got 'Sight'", 26),
 ])
@@ -102,3 +107,19 @@ def test_a_bad_frame_is_named_by_its_line(shared_data):
         with pytest.raises(MocapFormatError, match=message) as caught:
             parse_bvh(b"\n".join(bad), "10_03.bvh")
         assert caught.value.line == first + 3
+
+
+def test_line_ends_and_styles_a_first_frame_does_not_show(shared_data):
+    """CR-only line ends, and a first frame of zeros that %g and repr would both write alike but
+    for later frames: the style comes from frames spread over the clip."""
+    text = (shared_data / "cmu-bvh" / "10" / "10_03.bvh").read_bytes()
+    cr_only = text.replace(b"\r\n", b"\n").replace(b"\n", b"\r")
+    bvh = parse_bvh(cr_only, "cr.bvh")
+    assert format_bvh(bvh).encode() == cr_only and bvh.style.line_end == "\r"
+    assert format_bvh(replace(bvh, frames_text=None)).encode() == cr_only
+    head, frames = text.split(b"Frame Time:\t0.00833333\r\n")
+    lines = frames.split(b"\n")
+    lines[0] = b" ".join([b"0"] * 132)  # a first frame %g writes as it is, and repr does not
+    mixed = parse_bvh(head + b"Frame Time:\t0.00833333\r\n" + b"\n".join(lines), "mixed.bvh")
+    assert mixed.style.number == "repr"  # as the other frames: nothing written later loses digits
+    assert mixed.style.format(mixed.values[1:2]).encode() == lines[1] + b"\n"

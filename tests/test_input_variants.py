@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -22,7 +23,8 @@ from mocapzip.formats.text import stated_frame_rate
 
 @pytest.mark.parametrize("line, rate", [
     ("# Frame Rate: 200.000 fps", 200.0), ("#frame rate:59.94", 59.94), ("# FRAME RATE = 30 Hz", 30.0),
-    ("fps:30", 30.0), ("captured with fps = 60 on stage 2", 60.0),
+    ("fps:30", 30.0), ("# fps = 60", 60.0), ("captured with fps = 60 on stage 2", None),
+    ("120 fps = 0.00833 s", None), ("fps: 0.5", None),
     ("# Frame Rate: 0 fps", None), ("fps:1e9", None), ("myfps:30", None), ("# Frame Rate: fast", None),
     ("# Frame Rate: 200000 fps", None), (":FULLY-SPECIFIED", None),
 ])
@@ -31,7 +33,9 @@ def test_a_stated_rate_is_read_where_exporters_write_it(line, rate):
 
 
 def test_real_files_state_their_rates_or_none(shared_data):
-    for amc in sorted((shared_data / "other-vicon-blade").glob("*/*.amc")):
+    blade = sorted((shared_data / "other-vicon-blade").glob("*/*.amc"))
+    assert len(blade) == 3
+    for amc in blade:
         assert read_amc(amc).frame_rate == 200.0
     assert read_amc(shared_data / "cmu" / "09" / "09_01.amc").frame_rate is None
     cmu = (shared_data / "cmu" / "09" / "09.asf").read_bytes()
@@ -79,7 +83,9 @@ def test_units_given_by_name_are_read_as_other_readers_read_them(shared_data):
     metres, inches = parse_asf(named, "09.asf"), parse_asf(text, "09.asf")
     assert metres.units == {"mass": "kg", "length": "m", "angle": "deg"}
     assert metres.cm_per_unit == 100.0 and inches.cm_per_unit == pytest.approx(2.54 / 0.45)
-    assert [b.length for b in metres.bones] == [b.length for b in inches.bones]
+    clip = read_amc(shared_data / "cmu" / "09" / "09_01.amc", inches)
+    scale = 100.0 / (2.54 / 0.45)  # the same numbers, read as metres instead of 1/0.45 inch
+    assert np.allclose(mocapzip.joint_positions(metres, clip), scale * mocapzip.joint_positions(inches, clip))
 
 
 def test_a_folder_of_several_skeletons_pairs_without_asking_where_nothing_is_ambiguous(shared_data, tmp_path):
@@ -95,18 +101,25 @@ def test_a_folder_of_several_skeletons_pairs_without_asking_where_nothing_is_amb
     result = runner.invoke(main, ["compress", str(copies), "-o", str(tmp_path / "a.mcz"), "-q"])
     assert result.exit_code == 0, result.output
     assert json.loads(runner.invoke(main, ["info", "--json", str(tmp_path / "a.mcz")]).output)["skeletons"] == 1
+    (copies / "09.asf").symlink_to(cmu09 / "09.asf")  # and a different one: 07_01 still takes a copy of 07
+    with pytest.warns(UserWarning, match="2 different skeletons"):
+        mocapzip.compress(copies, tmp_path / "a2.mcz")
+    with mocapzip.open(tmp_path / "a2.mcz") as archive:
+        assert archive["07_01.amc"].skeleton.path == "07.asf"
 
     mixed = tmp_path / "mixed"
     mixed.mkdir()
     for source in (cmu07 / "07.asf", cmu07 / "07_01.amc", cmu09 / "09.asf", cmu09 / "09_01.amc"):
         (mixed / source.name).symlink_to(source)
-    with pytest.warns(UserWarning, match=r"2 different .asf files; each AMC paired with the one whose name begins "
+    with pytest.warns(UserWarning, match=r"2 different skeletons; each AMC paired with the .asf whose name begins "
                                          r"its own: 07.asf \(1 clip\), 09.asf \(1 clip\)"):
         summary = mocapzip.compress(mixed, tmp_path / "b.mcz")
     assert summary["clips"] == 2
     with mocapzip.open(tmp_path / "b.mcz") as archive:
         assert {clip.path: clip.skeleton.path for clip in archive} == {"07_01.amc": "07.asf", "09_01.amc": "09.asf"}
 
-    (mixed / "walk.amc").symlink_to(cmu07 / "07_02.amc")  # no skeleton's name begins it
-    result = runner.invoke(main, ["compress", str(mixed), "-o", str(tmp_path / "c.mcz"), "-q"])
-    assert result.exit_code == 1 and "walk.amc: ambiguous skeleton: 2 different .asf files" in result.output
+    for name in ("walk.amc", "070_01.amc"):  # no skeleton's name begins it (up to a boundary)
+        (mixed / name).symlink_to(cmu07 / "07_02.amc")
+        result = runner.invoke(main, ["compress", str(mixed), "-o", str(tmp_path / "c.mcz"), "-q"])
+        assert result.exit_code == 1 and f"{name}: ambiguous skeleton: 2 different skeletons" in result.output
+        (mixed / name).unlink()

@@ -55,7 +55,7 @@ class LoadedClip:
     axis_weight_cm: float = 1.0
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
     glitches: list[Glitch] | None = None  # the source's (`inputs.glitches`; lossy, read with a frame rate)
-    fps: float | None = None  # frames per second (`clip_frame_rate`); None: read without a frame rate
+    fps: float = 120.0  # frames per second (`clip_frame_rate`; CMU's and HDM05's where nothing says)
     _scored_frames: tuple = field(default=(None, None), repr=False, compare=False)  # see _originals
 
     @property
@@ -202,7 +202,7 @@ class ClipReader:
         if encoded is not None:  # the joints the error is measured against, by the check's own kinematics
             clip.positions = clip.decode_tail.positions(motion.values)
             clip.glitches = self._glitches.get(source)
-            if clip.glitches is None and clip.fps is not None:
+            if clip.glitches is None and self.fps is not None:
                 clip.glitches = find_glitches(skeleton, model, motion, clip.positions, clip.fps)
         return clip
 

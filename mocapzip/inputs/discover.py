@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import check_regular_file
+from mocapzip.formats.text import check_regular_file, read_regular_file
 
 
 @dataclass(frozen=True)
@@ -122,51 +122,55 @@ def _record(skipped: list, relpath: str, exc: Exception) -> None:
     warnings.warn(f"skipped {relpath}: {error}", stacklevel=4)
 
 
-def _skeletons_in_folder(folder: Path) -> list[Path]:
-    """The distinct skeletons among the folder's .asf files: of files alike but for their line
-    ends, the first by name. Any non-folder .asf counts, so that a FIFO or a dangling link is
-    refused by name when read (here only regular files are compared)."""
+def _skeletons_in_folder(folder: Path) -> list[list[Path]]:
+    """The folder's .asf files grouped by skeleton: files alike but for their line ends are one
+    group. Any non-folder .asf counts, so that a FIFO or a dangling link is refused by name when
+    read; one that cannot be read here stays a group of its own."""
     candidates = sorted(p for p in folder.iterdir() if _is_asf(p.name) and not p.is_dir())
     if len(candidates) < 2:
-        return candidates
-    distinct, texts = [], set()
+        return [[p] for p in candidates]
+    groups: dict[bytes | Path, list[Path]] = {}
     for path in candidates:
         try:
-            check_regular_file(path.stat(), path)
-            text = path.read_bytes().replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+            key = read_regular_file(path).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
         except (OSError, MocapFormatError):
-            distinct.append(path)  # not readable here: refused by name when the clip is read
-            continue
-        if text not in texts:
-            texts.add(text)
-            distinct.append(path)
-    return distinct
+            key = path
+        groups.setdefault(key, []).append(path)
+    return list(groups.values())
 
 
-def _skeleton_of(amc: Path, candidates: list[Path], required: bool) -> Path | None:
-    """The one distinct skeleton in the AMC's folder, or the one whose name begins the AMC's."""
-    if len(candidates) == 1:
-        return candidates[0]
-    fitting = [p for p in candidates if amc.stem.lower().startswith(p.stem.lower())]
-    if candidates and fitting:
-        return max(fitting, key=lambda p: len(p.stem))  # 07_01-walk.amc: 07-walk.asf before 07.asf
-    if not candidates:
+def _names_the_clip(asf: Path, amc: Path) -> bool:
+    """Whether the ASF's name begins the AMC's, up to a boundary: 07.asf names 07_01.amc and
+    07-walk.amc, not 070_01.amc."""
+    stem, clip = asf.stem.lower(), amc.stem.lower()
+    return clip.startswith(stem) and (len(clip) == len(stem) or not clip[len(stem)].isalnum())
+
+
+def _skeleton_of(amc: Path, groups: list[list[Path]], required: bool) -> Path | None:
+    """The folder's one skeleton, or the one with a file whose name begins the AMC's (that file;
+    of several, the longest name); the first of its copies where one skeleton has no such name."""
+    fitting = [p for group in groups for p in group if _names_the_clip(p, amc)]
+    if fitting:
+        return max(fitting, key=lambda p: len(p.stem))
+    if len(groups) == 1:
+        return groups[0][0]
+    if not groups:
         error = MocapFormatError("no skeleton: no .asf file in its folder (pass --asf FILE)", amc)
     else:
-        names = ", ".join(p.name for p in candidates)
-        error = MocapFormatError(f"ambiguous skeleton: {len(candidates)} different .asf files in its folder "
-                                 f"({names}), none named like the clip; pass --asf FILE", amc)
+        names = ", ".join(p.name for group in groups for p in group)
+        error = MocapFormatError(f"ambiguous skeleton: {len(groups)} different skeletons in its folder ({names}), "
+                                 "none named like the clip; pass --asf FILE", amc)
     if required:
         raise error
     warnings.warn(str(error), stacklevel=4)
     return None
 
 
-def _say_pairings(folder: Path, candidates: list[Path], clips: list[ClipSource]) -> None:
+def _say_pairings(folder: Path, groups: list[list[Path]], clips: list[ClipSource]) -> None:
     """One warning for a folder of several different skeletons: which AMCs took which."""
-    if len(candidates) < 2 or not clips:
+    if len(groups) < 2 or not clips:
         return
-    counts = {p: sum(1 for c in clips if c.asf == p) for p in candidates}
+    counts = {p: sum(1 for c in clips if c.asf == p) for group in groups for p in group}
     pairs = ", ".join(f"{p.name} ({n} clip{'' if n == 1 else 's'})" for p, n in counts.items() if n)
-    warnings.warn(f"{folder}: {len(candidates)} different .asf files; each AMC paired with the one whose "
+    warnings.warn(f"{folder}: {len(groups)} different skeletons; each AMC paired with the .asf whose "
                   f"name begins its own: {pairs}", stacklevel=3)
