@@ -116,10 +116,10 @@ def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
         raise MocapFormatError(f"{n_frames} frames of {width} values are more than the {MAX_VALUES_PER_CLIP:,} "
                                "a clip may hold", path, first_line - 2)
     frames_text = text[header_end:]
-    values = _frame_values(frames_text, n_frames, width, path, first_line)
+    values, lines = _frame_values(frames_text, n_frames, width, path, first_line)
     values.flags.writeable = False  # the text kept beside them must stay what they say
-    return Bvh(joints, frame_time, values, text[:header_end], _style_of(frames_text, values), frames_text, encoding,
-               path)
+    return Bvh(joints, frame_time, values, text[:header_end], _style_of(frames_text, lines, values), frames_text,
+               encoding, path)
 
 
 def format_bvh(bvh: Bvh) -> str:
@@ -140,12 +140,21 @@ _FRAMES = re.compile(r"^([ \t]*Frames:[ \t]*)(\d+)", re.IGNORECASE | re.MULTILIN
 _FRAME_TIME = re.compile(r"^([ \t]*Frame Time:[ \t]*)(\S+)", re.IGNORECASE | re.MULTILINE)
 
 
-def _lines_with_ends(text: str) -> list[str]:
-    """The lines of `text` with their ends; CRLF, LF and CR end a line, nothing else (as the
-    hierarchy's words are read, so line numbers agree)."""
-    parts = re.split(r"(\r\n|\r|\n)", text)
-    return [parts[i] + (parts[i + 1] if i + 1 < len(parts) else "") for i in range(0, len(parts), 2)
-            if parts[i] or i + 1 < len(parts)]
+def _lines_with_ends(text: str, limit: int) -> list[str]:
+    """The first `limit` lines of `text` with their ends; CRLF, LF and CR end a line, nothing else
+    (as the hierarchy's words are read, so line numbers agree)."""
+    lines, start = [], 0
+    for end in _LINE_END.finditer(text):
+        if len(lines) == limit:
+            return lines
+        lines.append(text[start : end.end()])
+        start = end.end()
+    if start < len(text) and len(lines) < limit:
+        lines.append(text[start:])
+    return lines
+
+
+_LINE_END = re.compile(r"\r\n|\r|\n")
 
 
 def write_bvh(bvh: Bvh, path: str | os.PathLike) -> None:
@@ -255,7 +264,7 @@ class _Parser:
 
     def motion_header(self) -> tuple[int, float, int, int]:
         """(frames, frame time, offset of the first frame in the text, its line)."""
-        lines = _lines_with_ends(self.text)
+        lines = _lines_with_ends(self.text, self.motion_line + 2)
         index = self.motion_line  # the 1-based MOTION line, so `lines[index]` is the one after it
         fields = {}
         for key in ("frames:", "frame time:"):
@@ -277,9 +286,10 @@ class _Parser:
         return int(fields["frames:"][0]), frame_time, sum(len(l) for l in lines[:index]), index + 1
 
 
-def _frame_values(frames_text: str, n_frames: int, width: int, path: str | None, first_line: int) -> np.ndarray:
+def _frame_values(frames_text: str, n_frames: int, width: int, path: str | None,
+                  first_line: int) -> tuple[np.ndarray, list[str]]:
     """The (frames, width) values of the frame lines, each line checked to hold `width` numbers
-    (MocapFormatError naming the first line that does not)."""
+    (MocapFormatError naming the first line that does not), and the lines (without their ends)."""
     lines = frames_text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     while lines and not lines[-1].strip():  # blank lines after the last frame (and the final line end)
         lines.pop()
@@ -295,7 +305,7 @@ def _frame_values(frames_text: str, n_frames: int, width: int, path: str | None,
     except ValueError:
         values = None
     if values is not None and np.all(np.abs(values) <= MAX_ABS_VALUE) and _plain_numbers(frames_text):
-        return values
+        return values, lines
     for f, line in enumerate(lines):  # the slow path: name the first word at fault
         for word in line.split():
             number(word, path, first_line + f)
@@ -311,22 +321,21 @@ def _plain_numbers(frames_text: str) -> bool:
 _NUMBER_CHARACTERS = str.maketrans("", "", "0123456789+-.eE \t\r\n")
 
 
-def _style_of(frames_text: str, values: np.ndarray) -> BvhStyle:
-    """The style that writes a sample of the frame lines (up to 16, spread over the clip) back from
-    their values, tried in NUMBER_STYLES order; where none does, Python's repr, which keeps every
-    value exactly. It is how values changed in code are written."""
-    lines = _lines_with_ends(frames_text)[: len(values)]
+def _style_of(frames_text: str, lines: list[str], values: np.ndarray) -> BvhStyle:
+    """The style that writes a sample of the frame `lines` (up to 16, spread over the clip) back
+    from their values, tried in NUMBER_STYLES order; where none does, Python's repr, which keeps
+    every value exactly. It is how values changed in code are written."""
     if not lines:
         return BvhStyle()
-    first = lines[0]
-    line_end = first[len(first.rstrip("\r\n")):] or "\n"
-    body = first.rstrip("\r\n")
+    body = lines[0]
+    after = frames_text[len(body) : len(body) + 2]
+    line_end = "\r\n" if after.startswith("\r\n") else after[:1] if after[:1] in ("\r", "\n") else "\n"
     trailing = body[len(body.rstrip(" \t")):]
     separator = "\t" if "\t" in body.strip() and " " not in body.strip() else " "
     sample = sorted({round(k * (len(lines) - 1) / 15) for k in range(16)})
     for style in NUMBER_STYLES:
         candidate = BvhStyle(style, separator, trailing, line_end)
-        if all(candidate.format(values[f : f + 1]).rstrip("\r\n") == lines[f].rstrip("\r\n") for f in sample):
+        if all(candidate.format(values[f : f + 1]).rstrip("\r\n") == lines[f] for f in sample):
             return candidate
     return BvhStyle("repr", separator, trailing, line_end)
 
