@@ -20,6 +20,7 @@ from mocapzip.cli.classify import classify
 from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, contact_error_cm, max_error_cm,
                                   max_error_value)
 from mocapzip.cli.errors import reports_errors
+from mocapzip.defaults import DEFAULT_FPS
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -236,7 +237,7 @@ def compress(inputs, output, error_cm, max_error, contact_error, repair_glitches
     contact = None if lossless else contact_error_cm(contact_error)
     settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, contact_error_cm=contact,
                                 repair_glitches=repair_glitches, representation=representation, transform=transform_config,
-                                classes=classes, split=_parse_split(split), fps=120.0 if fps is None else fps,
+                                classes=classes, split=_parse_split(split), fps=DEFAULT_FPS if fps is None else fps,
                                 fps_from_files=fps is None, lossless=lossless, segment=segment)
     try:
         summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad,

@@ -16,6 +16,7 @@ they are written in the number style the file used (`BvhStyle`, found on a sampl
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
 from dataclasses import dataclass
@@ -295,19 +296,19 @@ def _frame_values(frames_text: str, n_frames: int, width: int, path: str | None,
         lines.pop()
     if len(lines) != n_frames:
         raise MocapFormatError(f"Frames: says {n_frames}, but {len(lines)} frame lines follow", path, first_line - 2)
-    counts = [len(line.split()) for line in lines]
-    if counts.count(width) != n_frames:
-        f = next(f for f, count in enumerate(counts) if count != width)
-        raise MocapFormatError(f"frame {f + 1} has {counts[f]} values, the hierarchy's channels need {width}",
-                               path, first_line + f)
+    words = [line.split() for line in lines]
+    short = next((f for f, line in enumerate(words) if len(line) != width), None)
+    if short is not None:
+        raise MocapFormatError(f"frame {short + 1} has {len(words[short])} values, the hierarchy's channels need "
+                               f"{width}", path, first_line + short)
     try:  # every word at once; a word float() takes but the format does not ("1_000") is caught below
-        values = np.array(frames_text.split(), dtype=np.float64).reshape(n_frames, width)
+        values = np.array(list(itertools.chain.from_iterable(words)), dtype=np.float64).reshape(n_frames, width)
     except ValueError:
         values = None
     if values is not None and np.all(np.abs(values) <= MAX_ABS_VALUE) and _plain_numbers(frames_text):
         return values, lines
-    for f, line in enumerate(lines):  # the slow path: name the first word at fault
-        for word in line.split():
+    for f, line in enumerate(words):  # the slow path: name the first word at fault
+        for word in line:
             number(word, path, first_line + f)
     raise AssertionError("unreachable: a frame value was refused, but no word is at fault")
 

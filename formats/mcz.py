@@ -307,7 +307,7 @@ def _dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
 
 def _index_dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
     """What, if anything, makes the index dataset other than one element in one chunk, deflated
-    (the reader inflates it itself: `ArchiveReader._inflated`; `file_size` is checked there)."""
+    and stored within this file (the reader inflates it itself: `ArchiveReader._inflated`)."""
     plist = ds.id.get_create_plist()
     if plist.get_layout() != h5d.CHUNKED or ds.shape != (1,) or ds.chunks != (1,):
         return "is not one element in one chunk"
@@ -315,6 +315,9 @@ def _index_dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
         return "is not compressed by deflate alone"
     if plist.get_external_count() or ds.attrs:
         return "has external storage or attributes"
+    chunk = ds.id.get_chunk_info(0)
+    if chunk.filter_mask or chunk.byte_offset is None or chunk.byte_offset + chunk.size > file_size:
+        return "is not stored deflated within the file"
     return None
 
 
@@ -394,8 +397,7 @@ class ArchiveReader:
             else:
                 datasets = self._datasets(file_size, tuple(a for a in _ATTRIBUTES if a != "index"), ("index", "payload"))
                 payload_ds, index_ds = datasets["payload"], datasets["index"]
-                self._names, lengths, crcs = self._index(index_ds.id, (1,),
-                                                         lambda size: self._inflated(index_ds, size, file_size))
+                self._names, lengths, crcs = self._index(index_ds.id, (1,), lambda size: self._inflated(index_ds, size))
         else:
             datasets = self._datasets(file_size, _LEGACY_ATTRIBUTES, ("index", "payload"))
             payload_ds = datasets["payload"]
@@ -464,14 +466,11 @@ class ArchiveReader:
         self.tool_version = tool
         return self._index_columns(doc, _INDEX_KEYS[1:])
 
-    def _inflated(self, index_ds: h5py.Dataset, size: int, file_size: int) -> bytes:
-        """The index dataset's one chunk, inflated here, never by HDF5: HDF5's deflate filter inflates
-        whatever a chunk holds before dropping what exceeds the element, so a few kilobytes could
-        make it allocate gigabytes. The stored chunk must lie within the file and inflate to exactly
-        `size` bytes (checked as it inflates, never past `size` + 1)."""
-        chunk = index_ds.id.get_chunk_info(0)
-        if chunk.filter_mask or chunk.byte_offset is None or chunk.byte_offset + chunk.size > file_size:
-            raise self._error("index: its chunk is not stored deflated within the file")
+    def _inflated(self, index_ds: h5py.Dataset, size: int) -> bytes:
+        """The index dataset's one chunk (within the file: `_index_dataset_problem`), inflated here,
+        never by HDF5: HDF5's deflate filter inflates whatever a chunk holds before dropping what
+        exceeds the element, so a few kilobytes could make it allocate gigabytes. It must inflate
+        to exactly `size` bytes (checked as it inflates, never past `size` + 1)."""
         raw = index_ds.id.read_direct_chunk((0,))[1]
         inflater = zlib.decompressobj()
         data = inflater.decompress(raw, size + 1)

@@ -4,3 +4,5 @@
 # compress's default bound on every joint, as a multiple of the mean target (-e): it removes
 # gross errors for a few per cent more bytes (docs/fidelity.md, from `python benchmarks/max_error.py`)
 MAX_TO_MEAN = 10.0
+# a clip's frame rate where nothing sets it (ASF/AMC have no field for one): CMU's and HDM05's
+DEFAULT_FPS = 120.0

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.stages import get_stage, stage_ids
 
 DEFAULT_ERROR_CM = 1.0
@@ -27,7 +28,7 @@ class Settings:
     dead_zone: float = 0.2
     basis_precision: float = 0.04  # basis rounding error per direction, as a share of error_cm (docs/fixed_costs.md)
     axis_weight_cm: float = 12.0  # weight of bone axis vectors against positions (weighted.pose_weights; solved_bones.py)
-    fps: float = 120.0  # clips' frame rate where their files state none (ASF/AMC have no field for it)
+    fps: float = DEFAULT_FPS  # clips' frame rate where their files state none (ASF/AMC have no field for it)
     fps_from_files: bool = True  # a rate the clip's files state wins over `fps` (False: --fps given, for all)
     lossless: bool = False
     segment: bool = False  # cut long takes at PPCA change points, each segment coded on its own

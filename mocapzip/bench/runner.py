@@ -64,13 +64,13 @@ import numpy as np
 from mocapzip import __version__
 from mocapzip.classes.by_name import read_class_table
 from mocapzip.cli.choices import contact_error_cm, max_error_cm
+from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import ClipSource, find_clips
 from mocapzip.progress import progress
 
 CODECS = ("mcz", "hou", "hou-shared", "xz", "zstd")
 XZ_PRESET = 9
-BENCH_FPS = 120.0  # a clip's frame rate for foot skate where its files state none: CMU's and HDM05's
 ZSTD_LEVEL = 19
 NO_PCA = "none"  # --classes none: the bench-only "PCA off" emulation
 CLASS_PER_CLIP = "clip"  # --classes clip: one PCA class per clip, in a real archive
@@ -110,7 +110,7 @@ class Clip:
     amc_bytes: int
     channels: int  # AMC values per frame
     joints: int  # joint positions per frame (31 for CMU)
-    fps: float = BENCH_FPS  # its files' rate, else BENCH_FPS (`inputs.clip.clip_frame_rate`): skate is a speed
+    fps: float = DEFAULT_FPS  # its files' rate, else 120 (`inputs.clip.clip_frame_rate`): skate is a speed
 
     @property
     def path(self) -> str:
@@ -205,7 +205,7 @@ def _load_clips(sources: list[ClipSource], options: BenchOptions):
         motion = read_amc(source.amc, skeletons[source.asf])  # warnings (a dropped last frame) show once, here
         clips.append(Clip(source, groups[source.relpath], motion.n_frames, os.path.getsize(source.amc),
                           motion.values.shape[1], models[source.asf].n_joints,
-                          clip_frame_rate(motion, skeletons[source.asf], BENCH_FPS)))
+                          clip_frame_rate(motion, skeletons[source.asf], DEFAULT_FPS)))
     if any(c.frames == 0 for c in clips):
         raise MocapFormatError("clip has no frames", next(c.source.amc for c in clips if c.frames == 0))
     return clips, models

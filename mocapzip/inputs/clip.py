@@ -15,6 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
+from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.formats.amc import Motion, read_amc
 from mocapzip.formats.asf import Skeleton, read_asf
 from mocapzip.inputs.discover import ClipSource
@@ -55,7 +56,7 @@ class LoadedClip:
     axis_weight_cm: float = 1.0
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
     glitches: list[Glitch] | None = None  # the source's (`inputs.glitches`; lossy, read with a frame rate)
-    fps: float = 120.0  # frames per second (`clip_frame_rate`; CMU's and HDM05's where nothing says)
+    fps: float = DEFAULT_FPS  # frames per second (`clip_frame_rate`)
     _scored_frames: tuple = field(default=(None, None), repr=False, compare=False)  # see _originals
 
     @property
@@ -153,10 +154,10 @@ def load_clips(sources: list[ClipSource], representation_name: str | None,
     return [reader.read(source) for source in progress(sources, desc="read", unit="clip")]
 
 
-def clip_frame_rate(motion: Motion, skeleton: Skeleton, fps: float, from_files: bool = True) -> float:
-    """A clip's frame rate: the one its AMC header states, else its ASF's documentation, else `fps`;
-    always `fps` if not `from_files` (`--fps` given)."""
-    stated = (motion.frame_rate or skeleton.frame_rate) if from_files else None
+def clip_frame_rate(motion: Motion, skeleton: Skeleton | None, fps: float, from_files: bool = True) -> float:
+    """A clip's frame rate: the one its AMC header states, else its ASF's documentation (if it has
+    a skeleton), else `fps`; always `fps` if not `from_files` (`--fps` given)."""
+    stated = (motion.frame_rate or (skeleton and skeleton.frame_rate)) if from_files else None
     return stated or fps
 
 

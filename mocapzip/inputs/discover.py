@@ -4,9 +4,10 @@ An AMC pairs with the ASF the user names (`--asf`), or with the one in its own f
 may hold several: copies of one skeleton (CMU ships `07.asf` and `07-walk.asf`, which differ
 only in line ends) count as one; different ones pair each AMC with the ASF whose name begins its
 own (`07_01.amc` with `07.asf`), and a warning says so; an AMC that no name fits is ambiguous.
-The pairing is decided here, once, so `inspect`, `compress` and `bench` agree on what a clip is. Nothing is left out silently: a folder that cannot be listed is an
-error (or, with a `skipped` list, a listed skip), and a named input that is not a regular
-file (a FIFO, a device) is refused before anything opens it.
+The pairing is decided here, once, so `inspect`, `compress` and `bench` agree on what a clip
+is. Nothing is left out silently: a folder that cannot be listed is an error (or, with a
+`skipped` list, a listed skip), and a named input that is not a regular file (a FIFO, a
+device) is refused before anything opens it.
 """
 
 from __future__ import annotations
@@ -84,8 +85,9 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
             if skipped is None:
                 raise
             record_skip(skipped, c, exc)
-    for folder, candidates in folders.items():
-        _say_pairings(folder, candidates, [c for c in paired if c.amc.parent == folder])
+    for folder, groups in folders.items():
+        if len(groups) > 1:
+            _say_pairings(folder, groups, [c for c in paired if c.amc.parent == folder])
     return sorted(paired, key=lambda c: c.relpath)
 
 
@@ -168,7 +170,7 @@ def _skeleton_of(amc: Path, groups: list[list[Path]], required: bool) -> Path | 
 
 def _say_pairings(folder: Path, groups: list[list[Path]], clips: list[ClipSource]) -> None:
     """One warning for a folder of several different skeletons: which AMCs took which."""
-    if len(groups) < 2 or not clips:
+    if not clips:
         return
     counts = {p: sum(1 for c in clips if c.asf == p) for group in groups for p in group}
     pairs = ", ".join(f"{p.name} ({n} clip{'' if n == 1 else 's'})" for p, n in counts.items() if n)

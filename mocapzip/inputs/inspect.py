@@ -5,16 +5,17 @@ from __future__ import annotations
 
 import os
 
+from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
 from mocapzip.formats.errors import MocapFormatError
+from mocapzip.inputs.clip import clip_frame_rate
 from mocapzip.inputs.discover import find_clips
 from mocapzip.inputs.glitches import find_glitches
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
 from mocapzip.progress import progress
 
-DEFAULT_FPS = 120.0  # a clip whose files state no frame rate: CMU's and HDM05's
 
 
 def inspect_paths(paths, asf=None, fps: float | None = None, check: bool = False) -> dict:
@@ -33,7 +34,7 @@ def inspect_paths(paths, asf=None, fps: float | None = None, check: bool = False
                 skeletons[clip.asf] = read_asf(clip.asf)
             skeleton = skeletons[clip.asf]
         motion = read_amc(clip.amc, skeleton)
-        rate = fps or motion.frame_rate or (skeleton and skeleton.frame_rate) or DEFAULT_FPS
+        rate = clip_frame_rate(motion, skeleton, fps or DEFAULT_FPS, from_files=fps is None)
         rows.append({
             "path": clip.relpath,
             "frames": motion.n_frames,
