@@ -7,7 +7,7 @@ import os
 
 import click
 
-from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, max_error_value
+from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, max_error_value
 from mocapzip.cli.errors import reports_errors
 
 CODEC_CHOICES = ("mcz", "hou", "hou-shared", "xz", "zstd")
@@ -61,6 +61,8 @@ def _codecs(values):
               help="Table of clip -> motion class for the per-class report (CSV/TSV with file and class "
                    "columns; default: a MANIFEST.tsv in or above the inputs, else the skeleton).")
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
+@click.option("--units", type=click.Choice(UNITS), default=None,
+              help="Unit of the lengths in BVH files (default: inferred from the skeleton's size, as compress does).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1, show_default="all cores",
               help="Worker processes for mcz's error search.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, allow_dash=True), help="Write the full report as JSON ('-': stdout).")
@@ -74,12 +76,12 @@ def _codecs(values):
 @click.option("--per-clip", is_flag=True, help="Also print one line per clip.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no table (files are still written).")
 @reports_errors
-def bench(inputs, errors, representations, transforms, wavelet, classes, splits, codecs, groups, asf, jobs,
+def bench(inputs, errors, representations, transforms, wavelet, classes, splits, codecs, groups, asf, units, jobs,
           json_path, csv_path, plot_path, max_error, contact_error, per_clip, quiet):
     """Compress and decompress the clips under INPUTS and report size, ratio, error and speed,
     per clip, per motion class and overall, next to xz -9, zstd -19 and Hou et al. 2015.
 
-    Errors are measured end to end: decompressed AMC text read back and run through forward
+    Errors are measured end to end: decompressed AMC (or BVH) text read back and run through forward
     kinematics (Hou et al. code joint positions, so theirs are measured on positions): the
     mean, 99th percentile and max joint error, and foot skate, how much faster (cm/s) the
     source's planted feet slide once decoded (docs/fidelity.md).
@@ -89,6 +91,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
     Examples:
       mcz bench ../shared/data/cmu/07 --json report.json
       mcz bench ../shared/data/cmu -e 1 -e 0.5 --plot rd.png
+      mcz bench ../shared/data/bvh-bandai -e 1 -e 0.5 --codec mcz --codec xz
       mcz bench clips/ -r channels -r positions -c none -c single --split 0,0.5,0.5 --codec mcz
     """
     from mocapzip.bench import report as bench_report
@@ -105,7 +108,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
         transforms=list(transforms) or ["dct"], classes=list(classes) or ["pooled"], splits=_splits(splits),
         codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error,
-        contact_error=contact_error)
+        contact_error=contact_error, units=units)
     report = bench_module.run_bench(options)
     if json_path:
         _write(json_path, json.dumps(report, indent=1) + "\n")

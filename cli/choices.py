@@ -6,8 +6,9 @@ import math
 
 import click
 
-from mocapzip.defaults import MAX_TO_MEAN  # --max-error's default, as a multiple of -e
+from mocapzip.defaults import MAX_TO_MEAN, UNITS_CM  # --max-error's default, as a multiple of -e
 
+UNITS = tuple(UNITS_CM)  # --units: BVH length units
 TRANSFORMS = ("dct", "dwt", "identity")
 REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
 

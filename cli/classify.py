@@ -49,7 +49,7 @@ def load_poses(inputs, representation: str, asf=None) -> tuple[list, dict[str, "
 
     sources = find_clips(list(inputs), asf=asf)
     if not sources:
-        raise MocapFormatError("no AMC clips found", ", ".join(map(str, inputs)))
+        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(str, inputs)))
     clips = load_clips(sources, representation)
     return sources, {c.source.relpath: classification_poses(c) for c in clips}
 

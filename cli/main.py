@@ -17,7 +17,7 @@ from click.core import ParameterSource
 from mocapzip import __version__
 from mocapzip.cli.bench import bench
 from mocapzip.cli.classify import classify
-from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, contact_error_cm, max_error_cm,
+from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, contact_error_cm, max_error_cm,
                                   max_error_value)
 from mocapzip.cli.errors import reports_errors
 from mocapzip.defaults import DEFAULT_FPS
@@ -26,13 +26,13 @@ from mocapzip.defaults import DEFAULT_FPS
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "-V", "--version", prog_name="mcz")
 def main():
-    """mcz: compress motion-capture databases (Acclaim ASF/AMC) into one .mcz archive.
+    """mcz: compress motion-capture databases (Acclaim ASF/AMC, BVH) into one .mcz archive.
 
     \b
     Typical use:
       mcz inspect ../shared/data/cmu            what is there: clips, frames, skeletons
       mcz compress ../shared/data/cmu -o db.mcz one archive, every clip within 1 cm
-      mcz decompress db.mcz -o out/             the ASF and AMC files back
+      mcz decompress db.mcz -o out/             the ASF/AMC and BVH files back
 
     Run `mcz COMMAND --help` for the options of each command.
     """
@@ -49,15 +49,17 @@ def jobs_option(work: str):
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Frame rate for durations and the glitch check, for every clip (default: the rate a clip's "
-                   "files state, as Vicon Blade's '# Frame Rate: 200.000 fps', else 120).")
+                   "files state, as BVH 'Frame Time:' or Vicon Blade's '# Frame Rate: 200.000 fps', else 120).")
+@click.option("--units", type=click.Choice(UNITS), default=None,
+              help="Unit of the lengths in BVH files, for --check (default: inferred from the skeleton's size).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
 @click.option("--check", is_flag=True,
               help="Also list glitches in the source, per clip, bone and frames: joints that jump faster than "
                    "25 m/s, angles a quarter turn beyond the ASF's limits, values held for 30 frames or more, "
                    "bones zeroed (docs/fidelity.md). They are reported, not errors: the exit code stays 0.")
 @reports_errors
-def inspect(paths, asf, fps, as_json, check):
-    """Show the clips under PATHS (ASF/AMC files or folders, searched recursively).
+def inspect(paths, asf, fps, units, as_json, check):
+    """Show the clips under PATHS (ASF/AMC or BVH files, or folders, searched recursively).
 
     Per clip: frames, skeleton, degrees of freedom and duration; then totals.
     Every file is fully parsed, so `inspect` also reports damaged input.
@@ -66,10 +68,11 @@ def inspect(paths, asf, fps, as_json, check):
     Examples:
       mcz inspect ../shared/data/cmu
       mcz inspect ../shared/data/cmu/01 --check     what is broken in the source
+      mcz inspect ../shared/data/bvh-bandai
     """
     from mocapzip.inputs.inspect import inspect_paths
 
-    report = inspect_paths(paths, asf=asf, fps=fps, check=check)
+    report = inspect_paths(paths, asf=asf, fps=fps, check=check, units=units)
     if as_json:
         click.echo(json.dumps(report, indent=2))
         return
@@ -84,7 +87,7 @@ def inspect(paths, asf, fps, as_json, check):
                    f"{r['skeleton'] or '-'}")
     t = report["total"]
     click.echo(f"{'total: ' + _count(t['clips'], 'clip'):<{width}}  {t['frames']:>7}  {'':>4}  {'':>7}  "
-               f"{t['seconds']:>8.2f}  {_count(t['skeletons'], 'skeleton')}, {t['bytes'] / 1e6:.1f} MB of AMC")
+               f"{t['seconds']:>8.2f}  {_count(t['skeletons'], 'skeleton')}, {t['bytes'] / 1e6:.1f} MB of motion files")
 
 
 def _glitch_lines(clips: list[dict]) -> None:
@@ -192,9 +195,12 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
               help="Force the error split between root motion, PCA and temporal coding (shares of --error).")
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
 @click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=None,
-              help="Frame rate of every clip, stored in the archive. ASF/AMC have no field for it: by default "
-                   "a clip takes the rate its files state (AMC header '# Frame Rate: 200.000 fps', or 'fps:30' in "
-                   "the ASF's :documentation), else 120 (CMU, HDM05).")
+              help="Frame rate of every clip, stored in the archive. By default a clip takes the rate its files "
+                   "state (BVH 'Frame Time:'; AMC header '# Frame Rate: 200.000 fps', or 'fps:30' in the ASF's "
+                   ":documentation), else 120 (CMU, HDM05: ASF/AMC have no field for it).")
+@click.option("--units", type=click.Choice(UNITS), default=None,
+              help="Unit of the lengths in BVH files (OFFSETs, position channels). Default: inferred from the "
+                   "skeleton's size (a human's in cm, mm or m), refused where it cannot be (--lossless needs none); `mcz info` says which.")
 @jobs_option("reading the clips, the error search and the priors")
 @click.option("--cache-mb", type=click.IntRange(min=0), default=512, show_default=True,
               help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
@@ -208,12 +214,14 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
 def compress(inputs, output, error_cm, max_error, contact_error, repair_glitches, lossless, representation, transform, wavelet, level, classes, segment, split,
-             asf, fps, jobs, cache_mb, force, skip_bad, quiet, as_json):
-    """Compress the AMC clips under INPUTS (folders, searched recursively, or files) into one archive.
+             asf, fps, units, jobs, cache_mb, force, skip_bad, quiet, as_json):
+    """Compress the AMC and BVH clips under INPUTS (folders, searched recursively, or files) into one archive.
 
     Each AMC pairs with the ASF in its folder (or --asf): copies of one skeleton count as one, and
     of several different ones an AMC takes the one whose name begins its own (07_01.amc: 07.asf).
-    Inputs are kept; OUTPUT is written atomically and never overwritten without -f.
+    A BVH file holds its skeleton; files of one hierarchy share it. Lossy coding keeps a BVH root's
+    position channels and every rotation (docs/bvh.md). Inputs are kept; OUTPUT is written
+    atomically and never overwritten without -f.
 
     \b
     Examples:
@@ -223,6 +231,7 @@ def compress(inputs, output, error_cm, max_error, contact_error, repair_glitches
       mcz compress ../shared/data/cmu -o cmu.mcz --lossless --skip-bad  exact AMC values back
                                                                  (a clip cut short is skipped, and listed)
       mcz compress ../shared/data/cmu -o cmu.mcz -c auto --segment  classes (and cuts) found from the poses
+      mcz compress ../shared/data/bvh-bandai -o bandai.mcz -e 0.5  BVH files, each written back as BVH
     """
     if lossless:
         _refuse_lossy_options(click.get_current_context())
@@ -241,7 +250,7 @@ def compress(inputs, output, error_cm, max_error, contact_error, repair_glitches
                                 fps_from_files=fps is None, lossless=lossless, segment=segment)
     try:
         summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad,
-                                   cache_bytes=cache_mb << 20)
+                                   cache_bytes=cache_mb << 20, units=units)
     except archive.SettingsError as exc:  # e.g. --wavelet foo, --fps inf: a usage error, before any work
         raise click.UsageError(str(exc)) from None
     if as_json:
@@ -265,14 +274,14 @@ def _parse_split(text):
 @main.command()
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_not_stdout,
-              help="Folder for the ASF and AMC files (not stdout: `-o -` is refused).")
+              help="Folder for the ASF/AMC and BVH files (not stdout: `-o -` is refused).")
 @click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
 @click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
 @jobs_option("decoding the clips (the files are written in the archive's order)")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
 def decompress(archive_path, output, patterns, force, jobs, quiet):
-    """Write the ASF and AMC files of ARCHIVE under OUTPUT at their original relative paths.
+    """Write the ASF/AMC and BVH files of ARCHIVE under OUTPUT at their original relative paths.
 
     \b
     Examples:
@@ -323,6 +332,13 @@ def info(archive_path, show_clips, as_json):
     click.echo(f"{_count(len(report['clips']), 'clip')}, {_count(report['frames'], 'frame')}, {report['bytes']:,} bytes "
                f"({report['bytes_per_frame']:.2f} bytes/frame), {_errors(report)}")
     click.echo("streams: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(report["stream_bytes"].items())))
+    bvh = Counter((b["units"], b["units_inferred"]) for b in report["bvh_skeletons"])
+    if bvh:
+        asf = report["skeletons"] - len(report["bvh_skeletons"])
+        units = ", ".join(f"{n:,} BVH {'hierarchy' if n == 1 else 'hierarchies'} (units: {unit}, "
+                          f"{'inferred from the skeleton' if inferred else 'given by --units' if unit else 'not known'})"
+                          for (unit, inferred), n in sorted(bvh.items(), key=str))
+        click.echo(f"skeletons: {_count(asf, 'ASF skeleton') + ', ' if asf else ''}{units}")
     if report["skipped"]:
         click.echo(f"not in the archive, skipped by compress --skip-bad: {len(report['skipped'])}")
         for skip in report["skipped"]:

@@ -1,4 +1,4 @@
-"""The per-value loops of AMC reading and writing, compiled with numba.
+"""The per-value loops of AMC reading and writing (and BVH reading: `scan_lines`), compiled with numba.
 
 Why: reading and writing spend their time on each of the file's numbers (a CMU file holds a
 million in 9 MB), and NumPy's many passes or Python's `%` operator capped them at about 55 MB/s
@@ -277,6 +277,50 @@ def scan_frames(body, names, name_ends, counts, allowed, max_frame_number, max_a
     if pos != end:
         return LAYOUT_OTHER, 0, 0, values, 0, 0, stats
     return LAYOUT_OK, first, n_frames, values, faults, left, stats
+
+
+@numba.njit(cache=True)
+def scan_lines(body, n_lines, width, max_abs_value):
+    """Read `body` as `n_lines` lines of `width` numbers each (a BVH file's frames, `bvh.parse_bvh`):
+    numbers separated by blanks, lines ending in LF, CRLF or CR, blank lines and blanks allowed
+    after the last one only.
+
+    Returns (ok, values, starts): ok is False where the body is not that, or a value is not a
+    number or beyond `max_abs_value` (the caller then reads it word by word, which names the
+    fault); values left to float() are NaN; starts[f] is where line f begins.
+    """
+    end = body.size
+    values = np.empty((n_lines, width))
+    flat = values.reshape(-1)
+    starts = np.zeros(n_lines, dtype=np.int64)
+    line = 0
+    blank_lines = 0
+    pos = 0
+    while pos < end:
+        start = pos
+        count = 0
+        while True:
+            while pos < end and (body[pos] == 32 or body[pos] == 9 or body[pos] == 11 or body[pos] == 12):
+                pos += 1
+            if pos == end or body[pos] == 10 or body[pos] == 13:
+                break
+            if line >= n_lines or count >= width:
+                return False, values, starts
+            pos, value, kind, sig, decimals, exp_digits, has_dot = _number(body, pos, end)
+            if kind == _INVALID or (kind == _CONVERTED and not abs(value) <= max_abs_value):
+                return False, values, starts
+            flat[line * width + count] = value
+            count += 1
+        if pos < end:
+            pos += 2 if body[pos] == 13 and pos + 1 < end and body[pos + 1] == 10 else 1
+        if count == 0:
+            blank_lines += 1
+            continue
+        if blank_lines or count != width:
+            return False, values, starts
+        starts[line] = start
+        line += 1
+    return line == n_lines, values, starts
 
 
 # --------------------------------------------------------------------------- writing

@@ -16,21 +16,25 @@ they are written in the number style the file used (`BvhStyle`, found on a sampl
 
 from __future__ import annotations
 
-import itertools
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from mocapzip.formats.amc_compiled import scan_lines
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, check_text, detect_encoding, number,
-                                   read_regular_file)
+                                   open_regular_file, read_regular_file)
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP
 
 CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 _CHANNEL_NAMES = {name.lower(): name for name in CHANNELS}
-NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17")  # tried in this order (`_style_of`)
+MAX_HIERARCHY_CHARS = 1 << 20  # the text before MOTION: a 1,024-joint skeleton takes about 200 KB
+MAX_HIERARCHY_DEPTH = 200  # joints within joints (a human: about 10; each level is a Python call)
+# tried in this order (`_style_of`)
+NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17", "f6", "f3", "f4", "f5", "f7", "f8", "f9")
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,27 +52,34 @@ class BvhJoint:
 @dataclass(frozen=True)
 class BvhStyle:
     """How a file writes its frames: numbers ("repr": Python's shortest repr, as CMU's conversion;
-    "g<p>": C's %.<p>g, as most exporters), the separator between values, what ends a frame's
-    last value (a trailing blank, or nothing) and the line end."""
+    "g<p>": C's %.<p>g, as most exporters; "f<p>": %.<p>f, as Blender), the separator between
+    values, what ends a frame's last value (a trailing blank, or nothing), the line end, whether
+    the last frame has one, and the blank lines after it."""
 
     number: str = "g6"
     separator: str = " "
     trailing: str = ""
     line_end: str = "\n"
+    final_line_end: bool = True
+    after: str = ""  # blank lines (or blanks) after the last frame's line end
 
     def format(self, values: np.ndarray) -> str:
         """The frame lines of `values` (frames, channels), in this style."""
         if self.number == "repr":
             texts = [repr(v) for v in values.ravel().tolist()]
         else:
-            spec = f".{int(self.number[1:])}g"
+            spec = f".{int(self.number[1:])}{self.number[0]}"
             texts = [format(v, spec) for v in values.ravel().tolist()]
         width = values.shape[1] if values.ndim == 2 else 0
-        if width == 0:
-            return (self.trailing + self.line_end) * values.shape[0]
         ending = self.trailing + self.line_end
-        lines = [self.separator.join(texts[i : i + width]) for i in range(0, len(texts), width)]
-        return ending.join(lines) + ending if lines else ""
+        if width == 0:
+            lines = [""] * values.shape[0]
+        else:
+            lines = [self.separator.join(texts[i : i + width]) for i in range(0, len(texts), width)]
+        text = ending.join(lines) + ending if lines else ""
+        if lines and not self.final_line_end:
+            text = text[: len(text) - len(self.line_end)]
+        return text + self.after
 
 
 @dataclass
@@ -88,7 +99,13 @@ class Bvh:
 
     @property
     def fps(self) -> float:
-        return 1.0 / self.frame_time
+        """Frames per second: 1 / `frame_time`, or the whole rate whose frame time it is, as
+        exporters print it: to 6 significant digits (0.00833333: 120, not 120.00005) or 6 decimals
+        (0.008333, Blender's)."""
+        rate = 1.0 / self.frame_time
+        whole = round(rate)
+        printed = max(5e-6 * self.frame_time, 5e-7)  # how far a printed frame time is from its rate's
+        return float(whole) if whole and abs(1.0 / whole - self.frame_time) <= printed else rate
 
     @property
     def n_frames(self) -> int:
@@ -117,10 +134,78 @@ def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
         raise MocapFormatError(f"{n_frames} frames of {width} values are more than the {MAX_VALUES_PER_CLIP:,} "
                                "a clip may hold", path, first_line - 2)
     frames_text = text[header_end:]
-    values, lines = _frame_values(frames_text, n_frames, width, path, first_line)
+    frames = data[len(text[:header_end].encode(encoding)) :]
+    values, lines = _frame_values(frames, frames_text, n_frames, width, path, first_line)
     values.flags.writeable = False  # the text kept beside them must stay what they say
-    return Bvh(joints, frame_time, values, text[:header_end], _style_of(frames_text, lines, values), frames_text,
-               encoding, path)
+    line = lines if callable(lines) else lines.__getitem__
+    return Bvh(joints, frame_time, values, text[:header_end], _style_of(frames_text, n_frames, line, values),
+               frames_text, encoding, path)
+
+
+def read_hierarchy(path: str | os.PathLike) -> tuple[str, str]:
+    """(hierarchy text, encoding) of the BVH file at `path` (see `split_header`), reading no
+    further than its MOTION line; MocapFormatError if it has none. Only a header can hold
+    letters, so its encoding is the file's."""
+    head = bytearray()
+    with open_regular_file(path) as file:
+        while True:
+            chunk = file.read(1 << 16)
+            start = max(0, len(head) - 64)  # a MOTION line may begin in the previous chunk
+            head += chunk
+            motion = _MOTION_BYTES.search(head, start)
+            if motion or not chunk:
+                break
+    head = bytes(head)
+    if motion is None:
+        raise MocapFormatError("no MOTION line: not a BVH file", os.fspath(path))
+    hierarchy = check_text(head[: motion.start()], os.fspath(path)) if motion.start() else b""
+    encoding = detect_encoding(hierarchy)
+    return hierarchy.decode(encoding), encoding
+
+
+_MOTION_TEXT = re.compile(r"(?:\A|(?<=[\r\n]))[ \t\f\v]*MOTION[ \t\f\v]*(?:\r|\n|\Z)", re.IGNORECASE)
+_MOTION_BYTES = re.compile(rb"(?:\A|(?<=[\r\n]))[ \t\f\v]*MOTION[ \t\f\v]*(?:\r|\n|$)", re.IGNORECASE)
+
+
+def split_header(header: str) -> tuple[str, str]:
+    """(hierarchy, motion lines) of a BVH header: the text before its MOTION line, and the rest.
+    An archive keeps the first once per skeleton and the second per clip."""
+    start = 0
+    for line in _lines_with_ends(header, len(header) + 1):
+        if line.strip().upper() == "MOTION":  # as `_Parser` finds it
+            return header[:start], header[start:]
+        start += len(line)
+    raise ValueError("no MOTION line in the header")
+
+
+def motion_lines_problem(text: str, frames: int) -> str | None:
+    """What is wrong with `text` as a clip's MOTION lines (`split_header`'s second part) for
+    `frames` frames, as `parse_bvh` reads them; None if nothing (archives check what they keep)."""
+    lines = _lines_with_ends(text, 4)
+    if len(lines) != 3 or not all(line.endswith(("\n", "\r")) for line in lines):
+        return "not three lines, each with its line end"
+    words = [line.strip() for line in lines]
+    if words[0].upper() != "MOTION" or not words[1].lower().startswith("frames:") \
+            or not words[2].lower().startswith("frame time:"):
+        return "not the lines MOTION, Frames: and Frame Time:"
+    count = words[1][len("frames:"):].strip()
+    if not (count.isascii() and count.isdigit()) or int(count) != frames:
+        return f"Frames: is not {frames}"
+    try:
+        frame_time = number(words[2][len("frame time:"):].strip(), None, None, what="Frame Time")
+    except MocapFormatError:
+        return "Frame Time: is no number"
+    if not 1 / MAX_FRAME_RATE <= frame_time <= 1 / MIN_FRAME_RATE:
+        return f"Frame Time: is not a rate of {MIN_FRAME_RATE:g} to {MAX_FRAME_RATE:,.0f} fps"
+    return None
+
+
+def parse_hierarchy(text: str, path: str | None = None) -> list[BvhJoint]:
+    """The joints of a hierarchy's text (`split_header`'s first part), checked as `parse_bvh` does."""
+    parser = _Parser(text + "\nMOTION\n", path)
+    if parser.motion_line <= len(_lines_with_ends(text, len(text) + 1)):
+        raise MocapFormatError("a hierarchy holds no MOTION line", path, parser.motion_line)
+    return parser.hierarchy()
 
 
 def format_bvh(bvh: Bvh) -> str:
@@ -176,7 +261,12 @@ class _Parser:
         self.words: list[tuple[str, int]] = []  # (word, line) of the hierarchy
         self.position = 0
         self.motion_line: int | None = None  # the line of MOTION
-        for line_number, line in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), start=1):
+        motion = _MOTION_TEXT.search(text)  # the lines up to it, not the frames, are split
+        head = text if motion is None else text[: motion.end()]
+        if len(head) > MAX_HIERARCHY_CHARS:
+            raise self.fail(f"the hierarchy is longer than {MAX_HIERARCHY_CHARS:,} characters "
+                            f"({MAX_BONES_PER_SKELETON:,} joints at most)", 1)
+        for line_number, line in enumerate(head.replace("\r\n", "\n").replace("\r", "\n").split("\n"), start=1):
             if line.strip().upper() == "MOTION":
                 self.motion_line = line_number
                 break
@@ -207,8 +297,10 @@ class _Parser:
             raise self.fail("no MOTION section", self.words[-1][1])
         return joints
 
-    def joint(self, joints: list[BvhJoint], parent: int) -> None:
+    def joint(self, joints: list[BvhJoint], parent: int, depth: int = 1) -> None:
         name, line = self.next()
+        if depth > MAX_HIERARCHY_DEPTH:
+            raise self.fail(f"joints nested more than {MAX_HIERARCHY_DEPTH} deep", line)
         if name in ("{", "}"):
             raise self.fail("a joint needs a name", line)
         if any(j.name == name for j in joints):
@@ -240,7 +332,7 @@ class _Parser:
                     raise self.fail(f"joint {name!r} names a channel twice", line)
                 joints[index] = BvhJoint(name, parent, offset, channels)
             elif key == "JOINT":
-                self.joint(joints, index)
+                self.joint(joints, index, depth + 1)
             elif key == "END":
                 self.next("Site")
                 self.next("{")
@@ -287,10 +379,30 @@ class _Parser:
         return int(fields["frames:"][0]), frame_time, sum(len(l) for l in lines[:index]), index + 1
 
 
-def _frame_values(frames_text: str, n_frames: int, width: int, path: str | None,
-                  first_line: int) -> tuple[np.ndarray, list[str]]:
+def _frame_values(frames: bytes, frames_text: str, n_frames: int, width: int, path: str | None,
+                  first_line: int) -> tuple[np.ndarray, list[str] | Callable[[int], str]]:
     """The (frames, width) values of the frame lines, each line checked to hold `width` numbers
-    (MocapFormatError naming the first line that does not), and the lines (without their ends)."""
+    (MocapFormatError naming the first line that does not), and line f's text (without its end)
+    as `lines[f]` or `lines(f)`.
+
+    The usual file is read in one compiled pass over its bytes (`amc_compiled.scan_lines`); any
+    other, word by word, which names the word or line at fault."""
+    body = np.frombuffer(frames, dtype=np.uint8)
+    ok, values, starts = scan_lines(body, n_frames, width, MAX_ABS_VALUE)
+    if ok:
+        def line(f: int) -> str:
+            if f + 1 < n_frames:
+                return frames[starts[f] : starts[f + 1]].rstrip(b"\r\n").decode("ascii")
+            rest = frames[starts[f] :]
+            return rest[: min((i for i in (rest.find(b"\n"), rest.find(b"\r")) if i >= 0), default=len(rest))].decode(
+                "ascii")
+
+        left = np.argwhere(np.isnan(values))  # (frame, column) of the numbers the compiled pass left to float()
+        for f in np.unique(left[:, 0]).tolist():
+            words = line(f).split()
+            for k in np.flatnonzero(np.isnan(values[f])).tolist():
+                values[f, k] = number(words[k], path, first_line + f)
+        return values, line
     lines = frames_text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     while lines and not lines[-1].strip():  # blank lines after the last frame (and the final line end)
         lines.pop()
@@ -301,44 +413,33 @@ def _frame_values(frames_text: str, n_frames: int, width: int, path: str | None,
     if short is not None:
         raise MocapFormatError(f"frame {short + 1} has {len(words[short])} values, the hierarchy's channels need "
                                f"{width}", path, first_line + short)
-    try:  # every word at once; a word float() takes but the format does not ("1_000") is caught below
-        values = np.array(list(itertools.chain.from_iterable(words)), dtype=np.float64).reshape(n_frames, width)
-    except ValueError:
-        values = None
-    if values is not None and np.all(np.abs(values) <= MAX_ABS_VALUE) and _plain_numbers(frames_text):
-        return values, lines
-    for f, line in enumerate(words):  # the slow path: name the first word at fault
-        for word in line:
-            number(word, path, first_line + f)
-    raise AssertionError("unreachable: a frame value was refused, but no word is at fault")
+    for f, line in enumerate(words):  # the words at fault, or those the compiled pass leaves to float()
+        for k, word in enumerate(line):
+            values[f, k] = number(word, path, first_line + f)
+    return values, lines
 
 
-def _plain_numbers(frames_text: str) -> bool:
-    """Whether the frame lines hold nothing but digits, signs, points, exponents and blanks
-    (float() would also take '1_000', 'nan' and 'infinity')."""
-    return not frames_text.translate(_NUMBER_CHARACTERS).strip()
-
-
-_NUMBER_CHARACTERS = str.maketrans("", "", "0123456789+-.eE \t\r\n")
-
-
-def _style_of(frames_text: str, lines: list[str], values: np.ndarray) -> BvhStyle:
-    """The style that writes a sample of the frame `lines` (up to 16, spread over the clip) back
-    from their values, tried in NUMBER_STYLES order; where none does, Python's repr, which keeps
-    every value exactly. It is how values changed in code are written."""
-    if not lines:
+def _style_of(frames_text: str, n_lines: int, line: Callable[[int], str], values: np.ndarray) -> BvhStyle:
+    """The style that writes a sample of the frame lines (up to 16, spread over the clip; `line(f)`
+    is line f's text) back from their values, tried in NUMBER_STYLES order; where none does,
+    Python's repr, which keeps every value exactly. It is how values changed in code are written."""
+    if not n_lines:
         return BvhStyle()
-    body = lines[0]
+    body = line(0)
     after = frames_text[len(body) : len(body) + 2]
     line_end = "\r\n" if after.startswith("\r\n") else after[:1] if after[:1] in ("\r", "\n") else "\n"
     trailing = body[len(body.rstrip(" \t")):]
     separator = "\t" if "\t" in body.strip() and " " not in body.strip() else " "
-    sample = sorted({round(k * (len(lines) - 1) / 15) for k in range(16)})
+    last = line(n_lines - 1)
+    tail = frames_text[frames_text.rfind(last) + len(last) :] if last else ""  # the last line's end, and after
+    final = tail.startswith(line_end)
+    ends = {"final_line_end": final, "after": tail[len(line_end) :] if final else tail}
+    sample = sorted({round(k * (n_lines - 1) / 15) for k in range(16)})
     for style in NUMBER_STYLES:
         candidate = BvhStyle(style, separator, trailing, line_end)
-        if all(candidate.format(values[f : f + 1]).rstrip("\r\n") == lines[f] for f in sample):
-            return candidate
-    return BvhStyle("repr", separator, trailing, line_end)
+        if all(candidate.format(values[f : f + 1]).rstrip("\r\n") == line(f) for f in sample):
+            return BvhStyle(style, separator, trailing, line_end, **ends)
+    return BvhStyle("repr", separator, trailing, line_end, **ends)
 
 
 def _canonical_header(bvh: Bvh) -> str:

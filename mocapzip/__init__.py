@@ -1,4 +1,4 @@
-"""mocapzip: compress motion-capture databases (Acclaim ASF/AMC) into one small .mcz archive.
+"""mocapzip: compress motion-capture databases (Acclaim ASF/AMC, BVH) into one small .mcz archive.
 
     import mocapzip
     with mocapzip.open("db.mcz") as archive:
@@ -13,8 +13,8 @@ import os as _os
 
 __version__ = "0.1.0"
 __all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError",
-           "__version__", "compress", "decompress", "joint_positions", "read_amc", "read_asf", "read_bvh", "write_amc",
-           "write_asf", "write_bvh"]
+           "__version__", "bvh_joint_positions", "bvh_point_names", "compress", "decompress", "joint_positions",
+           "read_amc", "read_asf", "read_bvh", "write_amc", "write_asf", "write_bvh"]
 _API = {*__all__, "open"} - {"__version__"}  # `open` is left out of __all__: a star import keeps the built-in
 
 

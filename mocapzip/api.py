@@ -28,15 +28,16 @@ from mocapzip.archive.settings import SettingsError
 from mocapzip.defaults import MAX_TO_MEAN
 from mocapzip.formats.amc import Motion, parse_amc, read_amc, write_amc
 from mocapzip.formats.asf import Skeleton, parse_asf, read_asf, write_asf
-from mocapzip.formats.bvh import Bvh, read_bvh, write_bvh
+from mocapzip.formats.bvh import Bvh, BvhJoint, parse_bvh, read_bvh, write_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError
+from mocapzip.motion.bvh_skeleton import file_positions, point_names
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
 
 __all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError",
-           "compress", "decompress", "joint_positions", "read_amc", "read_asf", "read_bvh", "write_amc", "write_asf",
-           "write_bvh"]
+           "bvh_joint_positions", "bvh_point_names", "compress", "decompress", "joint_positions", "read_amc",
+           "read_asf", "read_bvh", "write_amc", "write_asf", "write_bvh"]
 # also `open`, left out of __all__ so that `from mocapzip import *` does not hide the built-in
 
 
@@ -57,6 +58,19 @@ def joint_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:
     return forward(SkeletonModel.from_asf(skeleton), motion.values, motion).positions
 
 
+def bvh_joint_positions(bvh: Bvh, units: str | None = None) -> np.ndarray:
+    """(frames, points, 3) float64 positions in cm of a BVH clip's joints and End Sites, in file
+    order (`bvh_point_names`), as its channels put them (docs/bvh.md, Conventions). `units`: of its
+    lengths ("cm", "mm", "m", "in"); None: inferred from the skeleton's size (MocapFormatError if
+    it cannot be)."""
+    return file_positions(bvh, units)
+
+
+def bvh_point_names(bvh: Bvh) -> tuple[str, ...]:
+    """What `bvh_joint_positions` gives, in order: each joint, then "<joint> End Site" if it has one."""
+    return point_names(bvh.joints)
+
+
 class Clip:
     """One clip of an open archive. Its motion is decoded on first use (only this clip's
     streams are read), then kept for as long as the clip is."""
@@ -68,6 +82,9 @@ class Clip:
         self.frames: int = row["frames"]
         # the rate the clip's files stated, else compress's --fps (default 120): ASF/AMC have no field for it
         self.fps: float = row.get("fps", archive._archive.settings.fps)
+        # "amc" or "bvh": the kind of file the clip came from, which `decompress` writes
+        self.format: str = "bvh" if "bvh" in row else "amc"
+        self._units = archive._archive.meta["skeletons"][row["skeleton"]].get("units")  # BVH lengths
         lossless = archive._archive.settings.lossless
         self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"])
 
@@ -75,35 +92,61 @@ class Clip:
         return f"<Clip {self.path!r}: {self.frames} frames at {self.fps:g} fps, mean error {self.error.mean_cm:.3f} cm>"
 
     @cached_property
-    def skeleton(self) -> Skeleton:
-        """The clip's ASF skeleton, parsed (the file itself, byte for byte: `asf_text`)."""
+    def skeleton(self) -> Skeleton | list[BvhJoint]:
+        """The clip's ASF skeleton, parsed (the file itself, byte for byte: `asf_text`); for a BVH
+        clip, its joints (`bvh.joints`)."""
+        if self.format == "bvh":
+            return self.bvh.joints
         return parse_asf(self.asf_text.encode("latin-1"), self._archive.meta["skeletons"][self._skeleton]["name"])
 
     @cached_property
     def asf_text(self) -> str:
-        """The ASF file as it was compressed, one character per byte (Latin-1)."""
+        """The ASF file as it was compressed, one character per byte (Latin-1); a BVH clip has none."""
+        self._only("amc", "asf_text")
         return self._archive.skeleton_text(self._skeleton)
 
     @cached_property
     def motion(self) -> Motion:
-        """The clip as the AMC file `decompress` writes, read back: bones, counts, values (read-only)."""
+        """The clip as the AMC file `decompress` writes, read back: bones, counts, values (read-only);
+        a BVH clip's is `bvh`."""
+        self._only("amc", "motion")
         motion = parse_amc(self._archive.file_bytes("amc", self.index), self.path, self.skeleton)
         motion.values.flags.writeable = False  # positions() are computed from them
         return motion
 
+    @cached_property
+    def bvh(self) -> Bvh:
+        """A BVH clip as the file `decompress` writes, read back (values read-only)."""
+        self._only("bvh", "bvh")
+        try:
+            return parse_bvh(self._archive.file_bytes("amc", self.index), self.path)
+        except MocapFormatError as exc:  # the text the archive makes: a damaged archive, not a bad input
+            raise ArchiveError(f"clip {self.path}: damaged ({exc})", self._archive.path) from exc
+
     @property
     def channels(self) -> np.ndarray:
-        """(frames, values) float64, read-only: the AMC values, bone after bone in `motion.bones` order."""
-        return self.motion.values
+        """(frames, values) float64, read-only: the AMC values, bone after bone in `motion.bones`
+        order; a BVH clip's frame values, in the order of its joints' CHANNELS."""
+        return self.bvh.values if self.format == "bvh" else self.motion.values
 
     @cached_property
     def joint_names(self) -> tuple[str, ...]:
-        """The joints of `positions()`: the root, then the end of every bone."""
+        """The joints of `positions()`: the root, then the end of every bone (BVH: every joint and
+        End Site, in file order: `bvh_point_names`)."""
+        if self.format == "bvh":
+            return bvh_point_names(self.bvh)
         return SkeletonModel.from_asf(self.skeleton).names
 
     def positions(self) -> np.ndarray:
-        """(frames, joints, 3) float64 joint positions in cm (`joint_positions` of this clip)."""
+        """(frames, joints, 3) float64 joint positions in cm (`joint_positions` of this clip;
+        BVH: `bvh_joint_positions`, in the archive's units)."""
+        if self.format == "bvh":
+            return bvh_joint_positions(self.bvh, self._units)
         return joint_positions(self.skeleton, self.motion)
+
+    def _only(self, kind: str, what: str) -> None:
+        if self.format != kind:
+            raise AttributeError(f"{self.path} is a {self.format.upper()} clip: it has no {what}")
 
     @property
     def _archive(self) -> reader.Archive:
@@ -198,9 +241,9 @@ _KEYWORD_FIELDS = {"error_cm": "error", "max_error_cm": "max_error", "contact_er
 def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: str | os.PathLike, *,
              error: float = settings.DEFAULT_ERROR_CM, max_error: float | None = _DEFAULT,
              contact_error: float | None = None, lossless: bool = False, classes: str = "pooled",
-             asf: str | os.PathLike | None = None, skip_bad: bool = False, jobs: int = 1, force: bool = False,
-             **options) -> dict:
-    """Compress the ASF/AMC files under `inputs` (folders or files) into the archive `output`, as
+             asf: str | os.PathLike | None = None, units: str | None = None, skip_bad: bool = False, jobs: int = 1,
+             force: bool = False, **options) -> dict:
+    """Compress the ASF/AMC and BVH files under `inputs` (folders or files) into the archive `output`, as
     `mcz compress` does (one worker process unless `jobs` says more); return its summary: clips,
     frames, bytes, achieved errors.
 
@@ -208,7 +251,8 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     every frame in cm (not given: 10 x `error`, as the command line; None: no bound).
     `contact_error`: the bound on planted foot joints. `lossless`: every AMC value back exactly
     (then no error or bound may be given). `asf`: the skeleton of AMC files that have none beside
-    them; `skip_bad`: leave out clips that cannot be read, listed in the summary. Other keywords
+    them; `units`: of BVH files' lengths ("cm", "mm", "m", "in"; None: inferred from the skeleton's
+    size); `skip_bad`: leave out clips that cannot be read, listed in the summary. Other keywords
     are fields of `mocapzip.archive.Settings` (representation="positions", ...); `fps=60` sets every
     clip's frame rate, as `--fps` (by default a clip takes the rate its files state, else 120). An
     existing `output` is replaced only with `force`.
@@ -237,12 +281,12 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
         raise SettingsError(f"compress() takes no option {str(exc).rsplit(' ', 1)[-1]}") from None
     inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
     return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force, jobs=jobs,
-                           skip_bad=skip_bad)
+                           skip_bad=skip_bad, units=units)
 
 
 def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Iterable[str] = (), *,
                force: bool = False, jobs: int = 1) -> dict:
-    """Write the ASF and AMC files of the archive's clips under the folder `output`, as
+    """Write the ASF and AMC (and BVH) files of the archive's clips under the folder `output`, as
     `mcz decompress` does (one worker process unless `jobs` says more): all clips, or those
     whose path matches one of the `clips` patterns (shell-style, e.g. "07/*"). Existing files
     are replaced only with `force`."""

@@ -27,12 +27,16 @@ from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.archive.dictionaries import dictionary
 from mocapzip.codec.entropy.coefficients import Priors, encode_matrices
+from mocapzip.codec.lossless import encode_channels
 from mocapzip.codec.patches import FramePatches
 from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"
 # the newest format; two clips, 09_01 (148 frames, 62 values, 25 of them patched) and 64_01
-BASES = {"lossy": GOLDEN / "lossy_v7.mcz", "lossless": GOLDEN / "lossless_v7.mcz"}
+BASES = {"lossy": GOLDEN / "lossy_v7.mcz", "lossless": GOLDEN / "lossless_v7.mcz",
+         # format 8's: the same two clips, then a BVH one (clip 2, skeleton 0: Bandai's walk-back_normal_001,
+         # 31 frames, whose extra root moves, so it has a stream extra_root/00002)
+         "lossy_bvh": GOLDEN / "lossy_v8.mcz", "lossless_bvh": GOLDEN / "lossless_v8.mcz"}
 BASE_PATCHED = 45  # the lossy base's clip 0 (09_01): its row's patched_frames
 MEMORY_LIMIT = 1 << 30  # address space of each child: far below what any bomb here would take
 COMMANDS = (("test", "-q"), ("info", "--json"), ("decompress", "-q", "-o"))
@@ -279,7 +283,81 @@ def cases(watched: Path) -> list[Case]:
                   "skeletons: data too short"))
     c.append(Case("skeleton_not_asf", "lossy", _stream("skeletons", _skeletons_stream([b"hello", b"hello"])),
                   "skeletons: skeleton 0", decoded=True))
+    # 6. BVH clips (format 8): the format-8 base without its AMC clips, so the BVH clip is clip 0.
+    bones = _bvh_row("bones")
+    for label, edit, section, decoded in (
+        ("bvh_bones_swapped", _set("clips.0.bones", [bones[0], bones[2], bones[1], *bones[3:]]), "clip/00000", True),
+        ("bvh_bone_dropped", _both(_set("clips.0.bones", bones[:-1]), _set("clips.0.counts", _bvh_row("counts")[:-1])),
+         "clip/00000", True),
+        ("bvh_angle_unit_rad", _set("clips.0.angle_unit", "rad"), "meta: clips[0]", False),
+        ("bvh_path_amc", _set("clips.0.path", "walk.amc"), "meta: clips[0].path", False),
+        ("bvh_row_on_an_asf_skeleton", _set("clips.0.skeleton", 1), "meta: clips[0].bvh", False),
+        ("bvh_frames_in_other_digits", _set("clips.0.bvh.motion", "MOTION\nFrames: \u0663\u0661\nFrame Time: 0.03\n"),
+         "meta: clips[0].bvh.motion", False),
+        ("bvh_frame_time_1e999", _set("clips.0.bvh.motion", "MOTION\nFrames: 31\nFrame Time: 1e999\n"),
+         "meta: clips[0].bvh.motion", False),
+        ("bvh_motion_without_its_line_end", _set("clips.0.bvh.motion", "MOTION\nFrames: 31\nFrame Time: 0.03"),
+         "meta: clips[0].bvh.motion", False),
+        ("bvh_style_with_a_frame_in_it", _set("clips.0.bvh.style.after", "\n1 2 3\n"), "meta: clips[0].bvh.style",
+         False),
+        ("bvh_hierarchy_without_its_line_end", _skeleton_0(lambda: _bvh_hierarchy().rstrip()), "skeletons: skeleton 0",
+         True),
+        ("bvh_hierarchy_1000_deep", _skeleton_0(lambda: _deep_hierarchy(1000)), "skeletons: skeleton 0", True),
+        ("bvh_hierarchy_of_60MB", _skeleton_0(lambda: b"HIERARCHY\n" + b"} " * (30 << 20)), "skeletons: skeleton 0",
+         True),
+        ("bvh_extra_root_nan", _stream("extra_root/00000", encode_channels(np.full((31, 6), np.nan))), "clip/00000",
+         True),
+        ("bvh_extra_root_5_channels", _stream("extra_root/00000", encode_channels(np.zeros((31, 5)))),
+         "extra_root/00000", True),
+    ):
+        c.append(Case(label, "lossy_bvh", _both(_bvh_only, edit), section, decoded=decoded))
+    c.append(Case("bvh_lossless_bones_not_its_joints", "lossless_bvh",
+                  _both(_bvh_only, _set("clips.0.bones", [f"j{k}" for k in range(len(_bvh_row("bones", "lossless_bvh")))])),
+                  "clip/00000", decoded=True))
     return c
+
+
+def _bvh_base_meta(base: str) -> dict:
+    with ArchiveReader(BASES[base]) as reader:
+        return json.loads(entropy.decode_bytes(reader.read("meta"), dictionary=dictionary("meta.json")))
+
+
+def _bvh_row(field: str, base: str = "lossy_bvh"):
+    """A field of the BVH clip's row (clip 2) in a format-8 base."""
+    return _bvh_base_meta(base)["clips"][2][field]
+
+
+def _bvh_only(meta: dict, streams: dict) -> None:
+    """A format-8 base with its AMC clips (0 and 1) left out: its BVH clip, clip 2, becomes clip 0."""
+    meta["clips"] = meta["clips"][2:]
+    for kind in ("clip", "patch", "extra_root"):
+        for k in (0, 1):
+            streams.pop(f"{kind}/{k:05d}", None)
+        if f"{kind}/00002" in streams:
+            streams[f"{kind}/00000"] = streams.pop(f"{kind}/00002")
+
+
+def _skeleton_0(text: Callable[[], bytes]) -> Callable[[dict, dict], None]:
+    """An edit that replaces skeleton 0 (the BVH hierarchy) with `text`, the ASF skeletons kept."""
+
+    def edit(meta: dict, streams: dict) -> None:
+        blobs = entropy.unpack_blobs(entropy.decode_bytes(streams["skeletons"], dictionary=dictionary("asf.txt")))
+        streams["skeletons"] = _skeletons_stream([text(), *blobs[1:]])
+
+    return edit
+
+
+def _bvh_hierarchy() -> bytes:
+    """The format-8 lossy base's BVH hierarchy (skeleton 0)."""
+    with ArchiveReader(BASES["lossy_bvh"]) as reader:
+        return entropy.unpack_blobs(entropy.decode_bytes(reader.read("skeletons"), dictionary=dictionary("asf.txt")))[0]
+
+
+def _deep_hierarchy(depth: int) -> bytes:
+    """A hierarchy of `depth` joints, each inside the one before."""
+    joints = "".join(f"{'ROOT' if k == 0 else 'JOINT'} j{k}\n{{\nOFFSET 0 0 1\nCHANNELS 3 Zrotation Xrotation "
+                     f"Yrotation\n" for k in range(depth))
+    return ("HIERARCHY\n" + joints + "}\n" * depth).encode()
 
 
 def _fake_content_size(size: int) -> bytes:

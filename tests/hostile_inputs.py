@@ -186,8 +186,8 @@ def build(root: Path, data: Path) -> list[Case]:
         {ASF_NAME: asf_bytes, "loop.amc": lambda p: p.symlink_to(p.name)})
     add(Case("symlink_loop_named", ["loop.amc"], "loop.amc", "symbolic link"),
         {ASF_NAME: asf_bytes, "loop.amc": lambda p: p.symlink_to(p.name)})
-    add(Case("zero_clips", ["."], "zero_clips", "no AMC clips found"), {ASF_NAME: asf_bytes})
-    add(Case("zero_clips_dir_loop", ["."], "zero_clips_dir_loop", "no AMC clips found"),
+    add(Case("zero_clips", ["."], "zero_clips", "no clips found"), {ASF_NAME: asf_bytes})
+    add(Case("zero_clips_dir_loop", ["."], "zero_clips_dir_loop", "no clips found"),
         {ASF_NAME: asf_bytes, "sub": lambda p: p.symlink_to(".", target_is_directory=True)})
     return cases
 

@@ -7,7 +7,9 @@ every past writer wrote. The inputs are two short real clips from ../shared/data
 (`positions.TwistChoice`), so the golden file holds some. From version 5 the lossy file bounds
 every joint at 3 cm (`--max-error`), so it holds frame patches; from version 6 it also bounds
 planted feet at 2 cm (`--contact-error`) and repairs glitches (64_01's left thumb is beyond its
-ASF limits), so its rows list repaired ranges.
+ASF limits), so its rows list repaired ranges. From version 8 a BVH clip joins them: Bandai's
+dataset-1_walk-back_normal_001 (31 frames), whose extra root moves, so the lossy file holds an
+extra_root stream.
 """
 
 import sys
@@ -18,7 +20,8 @@ from mocapzip.formats.mcz import FORMAT_VERSION
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 GOLDEN = Path(__file__).parent / "golden"
-INPUTS = [DATA / "cmu" / "09" / "09_01.amc", DATA / "cmu" / "64" / "64_01.amc"]
+INPUTS = [DATA / "cmu" / "09" / "09_01.amc", DATA / "cmu" / "64" / "64_01.amc",
+          DATA / "bvh-bandai" / "dataset-1_walk-back_normal_001.bvh"]
 
 if __name__ == "__main__":
     # The lossy file uses the newest clip coder even where "auto" would not (two clips are too

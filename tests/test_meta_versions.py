@@ -19,8 +19,22 @@ EXAMPLES = {"coefficient_coder": "context", "axes_from_positions": True, "twist_
             "repair_glitches": True, "repaired": [[1, 1, 1.0]], "fps_from_files": False, "fps": 200.0}
 
 
-def with_field(meta: dict, part: str, name: str) -> dict:
+def with_field(meta: dict, part: str, name: str, accepted: bool) -> dict:
+    """`meta` with the field added; where it is `accepted`, with the fields that must come with it."""
     meta = copy.deepcopy(meta)
+    if name in ("format", "bvh"):  # format 8's: a BVH skeleton, and its clips' text
+        with Archive(GOLDEN / "lossy_v8.mcz") as newest:
+            bvh_row = next(row for row in newest.clips if "bvh" in row)
+            bvh_skeleton = newest.meta["skeletons"][bvh_row["skeleton"]]
+        row = meta["clips"][0]
+        if name == "format" or accepted:
+            meta["skeletons"][row["skeleton"]] = dict(bvh_skeleton)
+        if name == "bvh" or accepted:
+            row["bvh"] = {"motion": f"MOTION\nFrames: {row['frames']}\nFrame Time: 0.01\n",
+                          "style": bvh_row["bvh"]["style"]}
+        if accepted:  # as a BVH clip's row has them
+            row.update(header=[], first_frame=1, angle_unit="deg", path=row["path"].rsplit(".", 1)[0] + ".bvh")
+        return meta
     (meta["settings"] if part == "settings" else meta["clips"][0])[name] = EXAMPLES[name]
     return meta
 
@@ -36,11 +50,11 @@ def test_each_golden_archive_meets_the_rules_of_its_version(kind, version):
 @pytest.mark.parametrize("version", range(1, FORMAT_VERSION + 1))
 def test_a_field_is_refused_before_the_version_that_added_it(version, added, part, name):
     with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
-        meta, names = with_field(archive.meta, part, name), archive._reader.names()
+        meta, names = with_field(archive.meta, part, name, version >= added), archive._reader.names()
     if name == "patched_frames":
         names = [*names, "patch/00000"]
     if version < added:
-        field = f"settings.{name}" if part == "settings" else f"clips[0].{name}"
+        field = f"settings.{name}" if part == "settings" else f"{part}[0].{name}"
         with pytest.raises(ArchiveError, match=re.escape(f"meta: {field}: format {added} on")):
             validate(meta, names, "x.mcz", version)
     else:

@@ -1,11 +1,12 @@
 """docs/format.md is enough to write a decoder: tests/reference_decoder/, written from it alone and
 sharing no code with mocapzip, decodes every golden file, and fresh archives of every representation,
-transform and coefficient coder, to the AMC values `mcz decompress` writes.
+transform and coefficient coder, to the AMC (format 8 on: and BVH) values `mcz decompress` writes.
 
 Lossless clips must agree bit for bit. Lossy clips are compared twice: with the values the package
 decodes before it formats them (within float rounding: different but equivalent orders of floating
-point operations), and with the AMC text `mcz decompress` writes (within one unit of the last digit
-written, since a value within float rounding of a rounding boundary may print either way).
+point operations; for a BVH clip, its model's channel values), and with the AMC or BVH text
+`mcz decompress` writes (within one unit of the last digit written, since a value within float
+rounding of a rounding boundary may print either way).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import reference_decoder
 from mocapzip.archive import Archive
 from mocapzip.cli.main import main
 from mocapzip.formats.amc import read_amc
+from mocapzip.formats.bvh import parse_bvh, read_bvh
 from mocapzip.formats.mcz import ArchiveReader
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -48,6 +50,13 @@ FRESH = {
 # 02_05 is a boxing take that --segment cuts in four
 FRESH_CLIPS = [("09", "09.asf"), ("09", "09_01.amc"), ("09", "09_02.amc"), ("07", "07.asf"), ("07", "07_01.amc"),
                ("02", "02.asf"), ("02", "02_05.amc")]
+# BVH clips (format 8 on), the same settings: a CMU conversion (3 rotation channels per joint, the
+# root's position channels, several children and End Sites) that --segment cuts in two, and two
+# Bandai takes (6 channels on every joint under an extra root, which moves in run_normal only)
+FRESH_BVH = {f"bvh-{label}": FRESH[label] for label in ("channels-identity", "positions-dwt", "aligned-lossless",
+                                                        "scaled-dct", "normalised-dwt", "segmented-max-error")}
+FRESH_BVH_CLIPS = ["cmu-bvh/10/10_01.bvh", "bvh-bandai/dataset-1_run_normal_001.bvh",
+                   "bvh-bandai/dataset-1_bow_active_001.bvh"]
 
 
 def test_reference_decoder_shares_no_code_with_mocapzip():
@@ -69,23 +78,42 @@ def test_reference_decoder_shares_no_code_with_mocapzip():
                 assert name.split(".")[0] in allowed, f"{module.name} imports {name}"
 
 
+def compressed(clips: Path, settings: dict, out: Path) -> dict[str, Path]:
+    """{label: archive of the folder `clips`, compressed with that label's options}."""
+    archives = {}
+    for label, options in settings.items():
+        archives[label] = out / f"{label}.mcz"
+        result = CliRunner().invoke(main, ["compress", str(clips), "-o", str(archives[label]), "-q", *options])
+        assert result.exit_code == 0, result.output
+    return archives
+
+
 @pytest.fixture(scope="module")
 def fresh_archives(tmp_path_factory, shared_data):
     clips = tmp_path_factory.mktemp("clips")
     for subject, name in FRESH_CLIPS:
         (clips / subject).mkdir(exist_ok=True)
         shutil.copyfile(shared_data / "cmu" / subject / name, clips / subject / name)
-    out = tmp_path_factory.mktemp("fresh")
-    archives = {}
-    for label, options in FRESH.items():
-        archives[label] = out / f"{label}.mcz"
-        result = CliRunner().invoke(main, ["compress", str(clips), "-o", str(archives[label]), "-q", *options])
-        assert result.exit_code == 0, result.output
+    archives = compressed(clips, FRESH, tmp_path_factory.mktemp("fresh"))
     with Archive(archives["segmented-auto-classes"]) as archive:  # the settings did what they are here for
         assert any("segments" in row for row in archive.clips) and len(archive.meta["classes"]) == 2
     for label in ("max-error", "segmented-max-error"):
         with Archive(archives[label]) as archive:
             assert any("patched_frames" in row for row in archive.clips), label
+    return archives
+
+
+@pytest.fixture(scope="module")
+def fresh_bvh_archives(tmp_path_factory, shared_data):
+    clips = tmp_path_factory.mktemp("bvh")
+    for name in FRESH_BVH_CLIPS:
+        (clips / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(shared_data / name, clips / name)
+    archives = compressed(clips, FRESH_BVH, tmp_path_factory.mktemp("fresh-bvh"))
+    with Archive(archives["bvh-segmented-max-error"]) as archive:  # the clips hold what they are here for
+        assert any("segments" in row for row in archive.clips)
+        assert any("patched_frames" in row for row in archive.clips)
+        assert sorted(row["path"] for row in archive.clips if row["bvh"].get("extra_root")) == [FRESH_BVH_CLIPS[1]]
     return archives
 
 
@@ -98,16 +126,53 @@ def _unit_of_last_digit(value: float, style: dict) -> float:
     return 10.0 ** (exponent - style["digits"] + 1)
 
 
+def _bvh_unit_of_last_digit(value: float, number: str) -> float:
+    """What one step in the last digit of a BVH frame line's `number` style ("g6" ...) is worth."""
+    assert number != "repr", "lossy BVH rows are written with %g"
+    magnitude = abs(value)
+    exponent = math.floor(math.log10(magnitude)) if magnitude > 0 else 0
+    return 10.0 ** (exponent - int(number[1:]) + 1)
+
+
+def check_bvh_clip(row: dict, ours: np.ndarray, clip: dict, decoded: np.ndarray, written_path: Path,
+                   lossless: bool) -> None:
+    """A BVH clip: the reference's file values against the file `mcz decompress` wrote (and its text),
+    and, lossy, the reference's model channel values against the package's decoded values."""
+    written = read_bvh(written_path)
+    data = written_path.read_bytes()
+    assert ours.shape == written.values.shape, row["path"]
+    if lossless:
+        for theirs in (written.values, decoded):
+            np.testing.assert_array_equal(ours, theirs, err_msg=row["path"])
+            assert np.array_equal(np.signbit(ours), np.signbit(theirs)), row["path"]
+        assert clip["model_values"] is None and clip["text"] == data, row["path"]
+        return
+    np.testing.assert_allclose(clip["model_values"], decoded, rtol=0, atol=FLOAT_ROUNDING, err_msg=row["path"])
+    number = row["bvh"]["style"]["number"]
+    units = np.vectorize(lambda v: _bvh_unit_of_last_digit(v, number))(written.values)
+    assert np.all(np.abs(ours - written.values) <= units), row["path"]
+    # the reference's text: the same hierarchy and MOTION lines, frame lines that read back as the file's
+    header = len(written.header.encode(written.encoding))
+    assert clip["text"][:header] == data[:header], row["path"]
+    assert np.all(np.abs(parse_bvh(clip["text"]).values - written.values) <= units), row["path"]
+
+
 def check_against_package(path: Path, tmp_path: Path) -> None:
-    reference = reference_decoder.decode_archive(path)
+    bvh_clips = {}
+    reference = reference_decoder.decode_archive(path, bvh_clips)
     result = CliRunner().invoke(main, ["decompress", str(path), "-o", str(tmp_path / "out")])
     assert result.exit_code == 0, result.output
     with Archive(path) as archive:
         rows = archive.clips
         assert sorted(reference) == sorted(row["path"] for row in rows)
+        assert sorted(bvh_clips) == sorted(row["path"] for row in rows if "bvh" in row)
         for index, row in enumerate(rows):
             ours = reference[row["path"]]
             decoded = archive.decode(index).values
+            if "bvh" in row:
+                check_bvh_clip(row, ours, bvh_clips[row["path"]], decoded, tmp_path / "out" / row["path"],
+                               archive.settings.lossless)
+                continue
             written = read_amc(tmp_path / "out" / row["path"]).values
             assert ours.shape == decoded.shape == written.shape, row["path"]
             if archive.settings.lossless:
@@ -128,6 +193,12 @@ def test_reference_decoder_decodes_every_golden_file(path, tmp_path):
 @pytest.mark.parametrize("label", sorted(FRESH))
 def test_reference_decoder_decodes_fresh_archives(fresh_archives, label, tmp_path):
     check_against_package(fresh_archives[label], tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("label", sorted(FRESH_BVH))
+def test_reference_decoder_decodes_fresh_bvh_archives(fresh_bvh_archives, label, tmp_path):
+    check_against_package(fresh_bvh_archives[label], tmp_path)
 
 
 @pytest.mark.parametrize("path", sorted(GOLDEN.glob("container_v*.mcz")), ids=lambda p: p.stem)

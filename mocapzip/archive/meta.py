@@ -15,8 +15,11 @@ import fastjsonschema
 import pywt
 
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
+from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
+from mocapzip.formats.bvh import motion_lines_problem
 from mocapzip.formats.text import MAX_FRAME_RATE
 from mocapzip.formats.mcz import ArchiveError
+from mocapzip.defaults import UNITS_CM
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import stage_classes, stage_ids
 
@@ -50,6 +53,17 @@ _STYLE = _record({
 
 _FRAME_NUMBER = {"type": "integer", "minimum": 0, "maximum": MAX_FRAME_NUMBER}
 
+# a BVH clip's text beside its values (format 8 on): its MOTION lines, and how its frame lines are written
+_BVH_TEXT = _record({
+    "motion": {"type": "string", "maxLength": 4096},
+    "style": _record({
+        "number": {"enum": list(BVH_NUMBER_STYLES)},
+        "separator": {"enum": [" ", "\t"]},
+        "trailing": {"type": "string", "pattern": "^[ \t]{0,16}$"},
+        "line_end": _NEWLINE,
+    }, {"final_line_end": {"type": "boolean"}, "after": {"type": "string", "pattern": "^[ \t\r\n]{0,64}$"}}),
+}, {"extra_root": {"enum": [True]}})  # lossy: the extra root's channels are in stream extra_root/NNNNN
+
 _SEGMENT = _record({
     "first": _COUNT, "frames": {"type": "integer", "minimum": 1}, "class": _COUNT, "stream": _STRING,
     "error_cm": _ERROR, "max_error_cm": _ERROR,
@@ -79,6 +93,7 @@ _CLIP = _record(
         "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
         "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
         "fps": {"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": MAX_FRAME_RATE},  # format 7 on
+        "bvh": _BVH_TEXT,  # format 8 on: a BVH clip (its skeleton's format is "bvh")
         # --repair-glitches (format 6 on): [first, last AMC frame numbers, largest joint error in cm] per run
         "repaired": {"type": "array", "maxItems": MAX_FRAMES_PER_CLIP, "items": {
             "type": "array", "minItems": 3, "maxItems": 3,
@@ -124,7 +139,9 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
     {
         "tool": _STRING,
         "settings": _SETTINGS,
-        "skeletons": {"type": "array", "items": _record({"name": _STRING})},
+        "skeletons": {"type": "array", "items": _record({"name": _STRING}, {  # format 8 on: a BVH hierarchy
+            "format": {"enum": ["bvh"]}, "encoding": {"enum": ["utf-8", "latin-1"]},
+            "units": {"enum": [*UNITS_CM, None]}, "units_inferred": {"type": "boolean"}})},
         "classes": {"type": "array", "items": _record({"name": _STRING, "components": _COUNT, "clips": _COUNT,
                                                        "frames": _COUNT})},
         "clips": {"type": "array", "items": _CLIP},
@@ -143,6 +160,7 @@ ADDED_IN = {
     5: (("settings", "max_error_cm"), ("clips", "p99_error_cm"), ("clips", "patched_frames")),
     6: (("settings", "contact_error_cm"), ("settings", "repair_glitches"), ("clips", "repaired")),
     7: (("settings", "fps_from_files"), ("clips", "fps")),
+    8: (("skeletons", "format"), ("clips", "bvh")),
 }
 
 
@@ -175,35 +193,38 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
     settings = meta["settings"]
     for version, fields in ADDED_IN.items():
         for part, name in fields if format_version < version else ():
-            rows = [settings] if part == "settings" else meta["clips"]
+            rows = [settings] if part == "settings" else meta[part]
             where = next((i for i, row in enumerate(rows) if name in row), None)
             if where is not None:
-                field = f"settings.{name}" if part == "settings" else f"clips[{where}].{name}"
+                field = f"settings.{name}" if part == "settings" else f"{part}[{where}].{name}"
                 raise fail(field, f"format {version} on; this archive is format {format_version}")
     transform = settings["transform"]
     if transform["id"] == "dwt" and transform["wavelet"] not in pywt.wavelist(kind="discrete"):
         raise fail("settings.transform.wavelet", f"unknown wavelet {transform['wavelet'][:40]!r}")
     if not settings["lossless"] and settings.get("coefficient_coder") == "auto":
         raise fail("settings.coefficient_coder", "'auto' is for compress; a lossy archive names its coder")
-    n_skeletons, n_classes = len(meta["skeletons"]), len(meta["classes"])
+    n_classes = len(meta["classes"])
     for k, skeleton in enumerate(meta["skeletons"]):
         _check_file_name(skeleton["name"], f"skeletons[{k}].name", fail)
+        bvh_fields = {"format", "encoding", "units", "units_inferred"}
+        if skeleton.keys() & bvh_fields and not skeleton.keys() >= bvh_fields:
+            raise fail(f"skeletons[{k}]", f"a BVH skeleton has all of {', '.join(sorted(bvh_fields))}")
     needed = {"meta", "skeletons"}
     if not settings["lossless"]:
         needed.update(f"class/{k:04d}" for k in range(n_classes))
         if settings.get("coefficient_coder") == "primed":
             needed.add("priors")
     for i, row in enumerate(meta["clips"]):
-        needed.update(_check_clip(row, i, settings, n_skeletons, n_classes, fail))
+        needed.update(_check_clip(row, i, settings, meta["skeletons"], n_classes, fail))
     missing = sorted(needed - set(stream_names))
     if missing:
         raise ArchiveError(f"{missing[0]}: stream missing", archive_path)
     return _output_files(meta, fail)
 
 
-def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: int, fail) -> list[str]:
+def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_classes: int, fail) -> list[str]:
     """Rules of one clip row beyond its schema; return the streams it needs."""
-    where = f"clips[{i}]"
+    where, n_skeletons = f"clips[{i}]", len(skeletons)
     _check_relative_path(row["path"], f"{where}.path", fail)
     if len(row["bones"]) != len(row["counts"]):
         raise fail(f"{where}.counts", f"{len(row['counts'])} counts for {len(row['bones'])} bones")
@@ -217,6 +238,16 @@ def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: 
         raise fail(f"{where}.bones", "a bone name of digits only would read back as a frame number")
     if row["skeleton"] >= n_skeletons:
         raise fail(f"{where}.skeleton", f"index {row['skeleton']} but the archive has {n_skeletons} skeletons")
+    if ("bvh" in row) != (skeletons[row["skeleton"]].get("format") == "bvh"):
+        raise fail(f"{where}.bvh", "a BVH clip has this field and a BVH skeleton, other clips neither")
+    if "bvh" in row:
+        problem = motion_lines_problem(row["bvh"]["motion"], row["frames"])
+        if problem:
+            raise fail(f"{where}.bvh.motion", problem)
+        if row["header"] or row["first_frame"] != 1 or row["angle_unit"] != "deg":
+            raise fail(where, "a BVH clip's header is empty, its first_frame 1 and its angle_unit deg")
+        if not row["path"].lower().endswith(".bvh"):
+            raise fail(f"{where}.path", "a BVH clip's path ends in .bvh")
     for n, line in enumerate(row["header"]):
         stripped = line.strip(" \t\f\v")
         if "\r" in line or "\n" in line or "\0" in line or (stripped and stripped[0] not in "#:"):
@@ -236,12 +267,13 @@ def _check_clip(row: dict, i: int, settings: dict, n_skeletons: int, n_classes: 
         if len(edges) % 2 or any(b <= a for a, b in zip(edges, edges[1:])) or (edges and edges[-1] > row["frames"]):
             raise fail(f"{where}.twist_flips", f"ranges of {bone[:40]!r} are not increasing pairs within the clip")
     if settings["lossless"]:
-        if "segments" in row or "twist_flips" in row or "patched_frames" in row:
-            raise fail(where, "a lossless clip has no segments, twist flips or patches")
+        if "segments" in row or "twist_flips" in row or "patched_frames" in row or "extra_root" in row.get("bvh", {}):
+            raise fail(where, "a lossless clip has no segments, twist flips, patches or extra root stream")
         return [f"clip/{i:05d}"]
     if row.get("patched_frames", 0) > row["frames"]:
         raise fail(f"{where}.patched_frames", f"{row['patched_frames']} patched frames in a clip of {row['frames']}")
     patches = [f"patch/{i:05d}"] if "patched_frames" in row else []
+    patches += [f"extra_root/{i:05d}"] if "extra_root" in row.get("bvh", {}) else []
     if "segments" not in row:
         if row["class"] >= n_classes:
             raise fail(f"{where}.class", f"index {row['class']} but the archive has {n_classes} classes")
@@ -300,6 +332,8 @@ def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
     for i, row in enumerate(meta["clips"]):
         claim(row["path"], ("amc", i), f"clips[{i}].path")
     for i, row in enumerate(meta["clips"]):
+        if "bvh" in row:
+            continue  # a BVH file holds its skeleton
         folder = row["path"].rpartition("/")[0]
         claim(f"{folder}/{meta['skeletons'][row['skeleton']]['name']}".lstrip("/"), ("asf", row["skeleton"]),
               f"clips[{i}].skeleton")

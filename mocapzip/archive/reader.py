@@ -27,9 +27,11 @@ from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors, check_matrix_shape
 from mocapzip.codec.entropy.zstd import decode_bytes, unpack_blobs
+from mocapzip.codec.lossless import decode_channels
 from mocapzip.codec.patches import FramePatches, channel_steps
 from mocapzip.formats.amc import AmcStyle, Motion, format_amc
 from mocapzip.formats.asf import parse_asf
+from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
 from mocapzip.formats.text import MAX_ABS_VALUE
@@ -38,6 +40,7 @@ from mocapzip.parallel import imap
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
+from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton
 
 
 class Archive:
@@ -73,6 +76,8 @@ class Archive:
         self._priors: Priors | None = None
         self._bases: dict[int, ClassBasis] = {}
         self._models: dict[int, SkeletonModel] = {}
+        self._bvh_skeletons: dict[int, BvhSkeleton] = {}
+        self._bvh_joints: dict[int, list] = {}
         self._tails: dict[tuple[int, ChannelLayout], DecodeTail] = {}
 
     def _json(self, name):
@@ -178,11 +183,55 @@ class Archive:
         """
         if kind == "asf":
             return self.skeleton_text(index).encode("latin-1")
+        row = self.clips[index]
+        if "bvh" in row:
+            return self._bvh_file(index)
         motion = self.decode(index)
-        if not np.all(np.abs(motion.values) <= MAX_ABS_VALUE):
-            raise ArchiveError(f"clip/{index:05d} ({motion.path}): damaged (decoded values beyond "
-                               f"+-{MAX_ABS_VALUE:g}, which no AMC reader accepts)", self.path)
+        self._check_range(index, motion.values)
         return format_amc(motion).encode(motion.style.encoding)
+
+    def _bvh_file(self, index: int) -> bytes:
+        """A BVH clip's file: its hierarchy, MOTION lines and frames (docs/format.md, "Decoding a BVH clip")."""
+        row, k = self.clips[index], self.clips[index]["skeleton"]
+        if self.settings.lossless:  # the values as the file had them: no model needed
+            joints = self.bvh_joints(k)
+            layout = ([j.name for j in joints if j.channels], [len(j.channels) for j in joints if j.channels])
+        else:
+            skeleton = self.bvh_skeleton(k)
+            layout = (list(skeleton.bones), list(skeleton.counts))
+        if (row["bones"], row["counts"]) != layout:
+            raise ArchiveError(f"clip/{index:05d} ({row['path']}): damaged (its bones and counts are not its "
+                               "hierarchy's)", self.path)
+        values = self.decode(index).values
+        if not self.settings.lossless:
+            values = skeleton.file_values(values, self._extra_root(index, skeleton))
+        self._check_range(index, values)
+        text = self.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
+        encoding = self.meta["skeletons"][k]["encoding"]
+        return text + (row["bvh"]["motion"] + BvhStyle(**row["bvh"]["style"]).format(values)).encode(encoding)
+
+    def _check_range(self, index: int, values: np.ndarray) -> None:
+        """ArchiveError for a value no reader would take back: NaN, or beyond +-MAX_ABS_VALUE."""
+        if not np.all(np.abs(values) <= MAX_ABS_VALUE):
+            raise ArchiveError(f"clip/{index:05d} ({self.clips[index]['path']}): damaged (decoded values beyond "
+                               f"+-{MAX_ABS_VALUE:g}, which no reader accepts)", self.path)
+
+    def _extra_root(self, index: int, skeleton: BvhSkeleton) -> np.ndarray | None:
+        """A lossy BVH clip's extra root's channels (`BvhSkeleton.above`; None: all 0), checked against its skeleton."""
+        row, name = self.clips[index], f"extra_root/{index:05d}"
+        if "extra_root" not in row["bvh"]:
+            return None  # none, or all 0
+        if not len(skeleton.above):
+            raise ArchiveError(f"clip/{index:05d} ({row['path']}): damaged (an extra root stream, but its "
+                               "hierarchy has no extra root)", self.path)
+        try:
+            values = decode_channels(self._reader.read(name))
+        except (ValueError, KeyError, IndexError, EOFError) as exc:
+            raise ArchiveError(f"{name} ({row['path']}): damaged ({exc})", self.path) from exc
+        if values.shape != (row["frames"], len(skeleton.above)):
+            raise ArchiveError(f"{name} ({row['path']}): damaged ({values.shape[1]} channels of {values.shape[0]} "
+                               f"frames, the clip needs {len(skeleton.above)} of {row['frames']})", self.path)
+        return values
 
     def _reconstruct(self, stream: str, class_index: int, n_frames: int):
         """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
@@ -201,6 +250,9 @@ class Archive:
 
     def _model(self, k: int) -> SkeletonModel:
         if k not in self._models:
+            if self.meta["skeletons"][k].get("format") == "bvh":
+                self._models[k] = self.bvh_skeleton(k).model
+                return self._models[k]
             try:
                 asf = parse_asf(self.skeleton_text(k).encode("latin-1"), self.meta["skeletons"][k]["name"])
                 self._models[k] = SkeletonModel.from_asf(asf)
@@ -209,6 +261,31 @@ class Archive:
                     raise
                 raise ArchiveError(f"skeletons: skeleton {k} is not a valid ASF ({exc})", self.path) from exc
         return self._models[k]
+
+    def bvh_joints(self, k: int) -> list[BvhJoint]:
+        """The joints of skeleton k, a BVH hierarchy (ArchiveError if it is none)."""
+        if k not in self._bvh_joints:
+            record = self.meta["skeletons"][k]
+            try:
+                text = self.skeleton_text(k).encode("latin-1").decode(record["encoding"])
+                if not text.endswith(("\n", "\r")):
+                    raise ValueError("it does not end with a line end, before which MOTION would begin")
+                self._bvh_joints[k] = parse_hierarchy(text, record["name"])
+            except (MocapFormatError, ValueError) as exc:
+                raise ArchiveError(f"skeletons: skeleton {k} is not a valid BVH hierarchy ({exc})", self.path) from exc
+        return self._bvh_joints[k]
+
+    def bvh_skeleton(self, k: int) -> BvhSkeleton:
+        """Skeleton k, a BVH hierarchy, with its model and its clips' channel layout; built once."""
+        if k not in self._bvh_skeletons:
+            record = self.meta["skeletons"][k]
+            try:
+                self._bvh_skeletons[k] = bvh_skeleton(self.bvh_joints(k), record["units"], record["name"])
+            except MocapFormatError as exc:
+                if isinstance(exc, ArchiveError):
+                    raise
+                raise ArchiveError(f"skeletons: skeleton {k} has no model ({exc})", self.path) from exc
+        return self._bvh_skeletons[k]
 
     def _decode_tail(self, k: int, layout: ChannelLayout) -> DecodeTail:
         """The decode tail of skeleton k's clips with this layout, built once: its tables and the
@@ -239,7 +316,8 @@ class Archive:
 
     def verify_checksums(self) -> None:
         """Check every stream's CRC32 without decoding: cheap, so `info` and `decompress` run it first."""
-        paths = {f"{kind}/{i:05d}": row["path"] for i, row in enumerate(self.clips) for kind in ("clip", "patch")}
+        paths = {f"{kind}/{i:05d}": row["path"] for i, row in enumerate(self.clips)
+                 for kind in ("clip", "patch", "extra_root")}
         for name in self._reader.names():
             try:
                 self._reader.read(name)
@@ -367,6 +445,9 @@ def info(archive_path) -> dict:
         "tool": meta["tool"],
         "settings": meta["settings"],
         "skeletons": len(meta["skeletons"]),
+        # BVH hierarchies (format 8 on): the unit of their lengths, and whether compress inferred it
+        "bvh_skeletons": [{k: s[k] for k in ("name", "units", "units_inferred")} for s in meta["skeletons"]
+                          if s.get("format") == "bvh"],
         "classes": meta["classes"],
         "auto_classes": meta.get("auto_classes", []),
         "clips": [_info_row(r, meta["settings"]["fps"]) for r in meta["clips"]],

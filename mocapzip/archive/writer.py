@@ -2,11 +2,12 @@
 
 Streams (see docs/format.md, "Streams written by the codec"):
   meta        zstd JSON (dictionary meta.json): settings, skeleton and class tables, one row per clip
-  skeletons   zstd of the ASF files, byte for byte, packed (dictionary asf.txt: family templates)
+  skeletons   zstd of the ASF files and BVH hierarchies, byte for byte, packed (dictionary asf.txt: family templates)
   class/NNNN  a class's quantised PCA mean and basis (lossy mode)
   priors      zstd bytes: where the clip streams' models start (coefficient coder "primed")
   clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
   clip/NNNNN/SSS  segment SSS of a take cut by --segment (its row in meta lists the segments)
+  extra_root/NNNNN  a lossy BVH clip's extra root's channels, lossless channel code (format 8 on)
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveWriter
 from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
+from mocapzip.defaults import UNITS_CM
+from mocapzip.motion.bvh_skeleton import BvhSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
 from mocapzip.parallel import imap, parallel_map
 from mocapzip.progress import progress
@@ -54,8 +57,9 @@ DEFAULT_CACHE_MB = 512  # clips kept in memory between compress's passes (inputs
 
 
 def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
-             skip_bad: bool = False, cache_bytes: int | None = DEFAULT_CACHE_MB << 20) -> dict:
+             skip_bad: bool = False, cache_bytes: int | None = DEFAULT_CACHE_MB << 20, units: str | None = None) -> dict:
     """Compress every clip under `inputs` into `output`; return the summary (also stored in meta).
+    `units`: of BVH files' lengths (a `UNITS_CM` name), where they cannot be inferred.
 
     With `skip_bad`, clips that cannot be read are left out and listed in the summary's
     `skipped` (and the archive's meta) instead of stopping the run.
@@ -68,38 +72,43 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     clip in memory.
     """
     settings = checked(settings)
+    if units is not None and units not in UNITS_CM:
+        raise ValueError(f"units must be one of {', '.join(UNITS_CM)}, got {units!r}")
     if not force and os.path.lexists(output):
         raise FileExistsError(None, "already exists", os.fspath(output))
     started = time.perf_counter()
     skipped = [] if skip_bad else None  # {"path", "error"} per clip left out
     sources = find_clips(inputs, asf=asf, skipped=skipped)
     if not sources and not skipped:
-        raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, inputs)))
+        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, inputs)))
     _refuse_input_as_output(output, [p for s in sources for p in (s.amc, s.asf)]
                             + [p for p in (asf, settings.classes) if p is not None and os.path.isfile(p)])
     keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
     reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
                         None if keeps_all else cache_bytes, settings.axes_from_positions, settings.fps,
-                        settings.fps_from_files)
+                        settings.fps_from_files, units)
     with ArchiveWriter(output, tool_version=__version__, overwrite=force) as writer:
         scan = _first_pass(sources, reader, settings, writer, skipped, accumulate=not keeps_all, jobs=jobs)
         if not scan.sources:
             raise MocapFormatError(f"nothing to compress: all {len(skipped)} inputs were skipped",
                                    ", ".join(map(os.fspath, inputs)))
         sources, rows = scan.sources, scan.rows
-        skeleton_paths = sorted({s.asf for s in sources})  # only the skeletons of the clips kept
+        skeletons = _skeletons_of(sources, reader)  # only the skeletons of the clips kept
+        skeleton_paths = list(skeletons)
+        number = {id(skeleton): k for k, skeleton in enumerate(skeletons.values())}
         for source, row in zip(sources, rows):
-            row["skeleton"] = skeleton_paths.index(source.asf)
-        units = _units(scan, reader, settings.segment and not settings.lossless)
+            row["skeleton"] = number[id(reader.skeleton(source.asf)[0])]
+        coding_units = _units(scan, reader, settings.segment and not settings.lossless)
         auto_report: dict = {}
-        unit_class = _unit_classes(scan, units, reader, settings, jobs, auto_report)
+        unit_class = _unit_classes(scan, coding_units, reader, settings, jobs, auto_report)
         class_names = sorted(set(unit_class))
-        for unit, name in zip(units, unit_class):
+        for unit, name in zip(coding_units, unit_class):
             if unit.first == 0:  # a take's class is its first segment's
                 rows[unit.clip]["class"] = class_names.index(name)
         classes_meta = []
         if not settings.lossless:
-            classes_meta, interim = _code_classes(scan, units, unit_class, class_names, reader, settings, writer, jobs)
+            classes_meta, interim = _code_classes(scan, coding_units, unit_class, class_names, reader, settings, writer,
+                                                  jobs)
             coder, clip_streams = _serialise_clips(interim, settings.coefficient_coder, jobs)
             for name, stream in clip_streams.items():
                 writer.add(name, stream)
@@ -117,7 +126,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         meta = {
             "tool": f"mocapzip {__version__}",
             "settings": stored_settings,
-            "skeletons": [{"name": p.name} for p in skeleton_paths],
+            "skeletons": [_skeleton_record(p, skeletons[p], reader) for p in skeleton_paths],
             "classes": classes_meta,
             "clips": rows,
         }
@@ -129,7 +138,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         # Checked as every reader checks them: compress never writes an archive a reader refuses.
         validate_meta(meta, order, os.fspath(output), FORMAT_VERSION)
         unpacked = {"meta": json.dumps(meta, sort_keys=True).encode(),
-                    "skeletons": pack_blobs(read_regular_file(p) for p in skeleton_paths)}
+                    "skeletons": pack_blobs(_skeleton_bytes(p, skeletons[p], reader) for p in skeleton_paths)}
         for name, data in unpacked.items():
             if len(data) > MAX_DECODED_STREAM_BYTES:
                 raise MocapFormatError(f"the archive's {name} would take {len(data):,} bytes, more than the "
@@ -143,7 +152,8 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "output": os.fspath(output),
         "clips": len(rows),
         "frames": frames,
-        "input_bytes": sum(os.path.getsize(s.amc) for s in sources) + sum(os.path.getsize(p) for p in skeleton_paths),
+        "input_bytes": sum(os.path.getsize(s.amc) for s in sources)
+        + sum(os.path.getsize(p) for p in skeleton_paths if not isinstance(skeletons[p], BvhSkeleton)),
         "output_bytes": size,
         "bytes_per_frame": size / frames,
         "worst_error_cm": largest_mean,  # kept for old readers: largest_mean_error_cm
@@ -154,6 +164,32 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "repaired": [{"path": r["path"], "first": first, "last": last, "error_cm": cm}
                      for r in rows for first, last, cm in r.get("repaired", [])],
     }
+
+
+def _skeletons_of(sources: list[ClipSource], reader: ClipReader) -> dict:
+    """The archive's skeletons, in order: path -> skeleton. Every ASF is one; BVH files of one
+    hierarchy share one, under the first of their paths."""
+    first: dict = {}
+    for path in sorted({s.asf for s in sources}):
+        skeleton = reader.skeleton(path)[0]
+        first.setdefault(id(skeleton), (path, skeleton))
+    return dict(first.values())
+
+
+def _skeleton_record(path, skeleton, reader: ClipReader) -> dict:
+    """A skeleton's entry in meta: the file it came from, and a BVH hierarchy's text encoding and units."""
+    if not isinstance(skeleton, BvhSkeleton):
+        return {"name": path.name}
+    return {"name": path.name, "format": "bvh", "encoding": reader.hierarchy_text(path)[1], "units": skeleton.units,
+            "units_inferred": reader.units is None and skeleton.units is not None}
+
+
+def _skeleton_bytes(path, skeleton, reader: ClipReader) -> bytes:
+    """What the skeletons stream keeps of a skeleton: the ASF file, or the BVH hierarchy's text."""
+    if not isinstance(skeleton, BvhSkeleton):
+        return read_regular_file(path)
+    text, encoding = reader.hierarchy_text(path)
+    return text.encode(encoding)
 
 
 def _refuse_input_as_output(output, inputs: list) -> None:
@@ -247,6 +283,8 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                     writer.add(f"clip/{len(scan.sources):05d}", stream)
                     scan.rows[-1].update(error_cm=0.0, p99_error_cm=0.0, max_error_cm=0.0)
                 else:
+                    if stream is not None:  # a BVH clip's extra root, kept exactly
+                        writer.add(f"extra_root/{len(scan.sources):05d}", stream)
                     dim = clip.poses.shape[1]
                     if name_class is not None:
                         scan.widths.setdefault(scan.classes[-1], dim)
@@ -295,7 +333,9 @@ def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None] | MocapFor
     except (MocapFormatError, OSError) as exc:
         return exc
     clip.model = None
-    return clip, encode_channels(clip.motion.values) if clip.encoded is None else None
+    if clip.encoded is None:
+        return clip, encode_channels(clip.motion.values)
+    return clip, None if clip.extra_root is None else encode_channels(clip.extra_root)
 
 
 def _check_codable(clip: LoadedClip) -> None:
@@ -516,13 +556,15 @@ def _clip_row(clip: LoadedClip, fps: float) -> dict:
         "header": m.header,
         "bones": m.bones,
         "counts": m.counts,
-        "angle_unit": clip.layout.angle_unit,
+        "angle_unit": "deg" if clip.bvh_text else clip.layout.angle_unit,  # BVH: always degrees
         "style": asdict(m.style),  # how the source wrote numbers and lines, to write it back alike
     }
     if m.dropped_frames:  # an incomplete last frame left out: the archive says so, not only a warning
         row["dropped_frames"] = m.dropped_frames
     if clip.fps != fps:  # a rate its files state (format 7 on)
         row["fps"] = clip.fps
+    if clip.bvh_text is not None:  # format 8 on
+        row["bvh"] = clip.bvh_text
     return row
 
 

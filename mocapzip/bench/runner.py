@@ -3,12 +3,12 @@
 What is measured, and how (the same text goes into every JSON report under "rules"):
 
 * Clips are what `mcz compress` would store: every AMC under the inputs, paired with
-  its skeleton (`mocapzip.inputs.discover.find_clips`).
+  its skeleton, and every BVH file (`mocapzip.inputs.discover.find_clips`). A BVH clip's
+  joints are its joints and End Sites (`mocapzip.motion.bvh_skeleton`).
 * mcz runs are real archives. `mcz compress` and `mcz decompress` run in child
   processes (so their peak memory is the child's `ru_maxrss`, and their time excludes
-  interpreter start-up), the decompressed AMC and ASF files are read back with
-  `mocapzip.formats` (`read_amc`, `read_asf`), run through forward kinematics and
-  compared with the originals. The codec's own error estimate is never used.
+  interpreter start-up), the decompressed AMC and ASF (or BVH) files are read back with
+  `mocapzip.formats`, run through forward kinematics and compared with the originals. The codec's own error estimate is never used.
 * Bytes of a clip in an archive: its `clip/NNNNN` stream, plus its class's `class/NNNN`
   stream shared among the clips of that class in proportion to frames, plus everything
   else in the file (meta, skeletons, container overhead) shared among all clips in
@@ -56,8 +56,8 @@ import sys
 import tempfile
 import time
 import warnings
-from dataclasses import dataclass, field
-from pathlib import Path, PurePosixPath
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -98,6 +98,7 @@ class BenchOptions:
     max_error: float | str | None = None  # --max-error: a bound in cm, "none", or None for compress's default (10 x -e)
     contact_error: float | str | None = None  # --contact-error: a bound in cm, "none", or None for compress's default
     hou_grid: dict | None = None  # override of hou.GRID_L/K/Q (tests, quick runs)
+    units: str | None = None  # --units: of BVH lengths, where they cannot be inferred
     quiet: bool = False
     command: str | None = None  # how the run was invoked (default: the equivalent `mcz bench` command)
 
@@ -137,23 +138,23 @@ def run_bench(options: BenchOptions) -> dict:
         raise MocapFormatError(f"unknown codec {unknown[0]!r}; choose from {', '.join(CODECS)}")
     sources = find_clips(options.inputs, asf=options.asf)
     if not sources:
-        raise MocapFormatError("no AMC clips found", ", ".join(map(os.fspath, options.inputs)))
-    clips, models = _load_clips(sources, options)
+        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, options.inputs)))
+    clips, reader = _load_clips(sources, options)
     runs = []
     with tempfile.TemporaryDirectory(prefix="mcz-bench-") as tmp:
         tasks = _tasks(options)
         for task in progress(tasks, desc="bench", unit="run"):
             kind = task["codec"]
             if kind == "mcz" and task["classes"] == NO_PCA:
-                runs.append(_run_mcz_without_pca(task, clips, models, options))
+                runs.append(_run_mcz_without_pca(task, clips, reader, options))
             elif kind == "mcz":
-                runs.append(_run_mcz(task, clips, models, options, Path(tmp)))
+                runs.append(_run_mcz(task, clips, reader, options, Path(tmp)))
             elif kind in ("xz", "zstd"):
                 runs.append(_run_lossless(kind, clips, options, Path(tmp)))
             elif kind == "hou":
-                runs.extend(_run_hou(task["errors"], clips, models, options))
+                runs.extend(_run_hou(task["errors"], clips, reader, options))
             elif kind == "hou-shared":
-                runs.extend(_run_hou_shared(task["errors"], clips, models, options))
+                runs.extend(_run_hou_shared(task["errors"], clips, reader, options))
     report = {
         "tool": f"mocapzip {__version__}",
         "command": options.command or command_line(options),
@@ -191,24 +192,19 @@ def _tasks(options: BenchOptions) -> list[dict]:
 
 
 def _load_clips(sources: list[ClipSource], options: BenchOptions):
-    from mocapzip.formats.amc import read_amc
-    from mocapzip.formats.asf import read_asf
-    from mocapzip.inputs.clip import clip_frame_rate
-    from mocapzip.motion.skeleton import SkeletonModel
+    """The clips to run on, and the `ClipReader` that reads them (and the decoded files) as the codec does."""
+    from mocapzip.inputs.clip import ClipReader, clip_frame_rate
 
     groups = _groups(sources, options.groups, options.inputs)
-    skeletons, models, clips = {}, {}, []
+    reader, clips = ClipReader(None, units=options.units), []
     for source in progress(sources, desc="read", unit="clip"):
-        if source.asf not in skeletons:
-            skeletons[source.asf] = read_asf(source.asf)
-            models[source.asf] = SkeletonModel.from_asf(skeletons[source.asf])
-        motion = read_amc(source.amc, skeletons[source.asf])  # warnings (a dropped last frame) show once, here
-        clips.append(Clip(source, groups[source.relpath], motion.n_frames, os.path.getsize(source.amc),
-                          motion.values.shape[1], models[source.asf].n_joints,
-                          clip_frame_rate(motion, skeletons[source.asf], DEFAULT_FPS)))
+        read = reader.motion(source)  # warnings (a dropped last frame) show once, here
+        clips.append(Clip(source, groups[source.relpath], read.motion.n_frames, os.path.getsize(source.amc),
+                          read.motion.values.shape[1], read.model.n_joints,
+                          clip_frame_rate(read.stated_fps, DEFAULT_FPS)))
     if any(c.frames == 0 for c in clips):
         raise MocapFormatError("clip has no frames", next(c.source.amc for c in clips if c.frames == 0))
-    return clips, models
+    return clips, reader
 
 
 def _groups(sources: list[ClipSource], table, inputs) -> dict[str, str]:
@@ -244,24 +240,22 @@ def _find_manifests(inputs) -> list[Path]:
     return out
 
 
-def _original(clip: Clip, models):
+def _original(clip: Clip, reader):
     """(model, motion, pose) of the original clip, read again (nothing is kept between runs)."""
-    from mocapzip.formats.amc import read_amc
     from mocapzip.motion.kinematics import forward
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # already shown once when the clips were loaded
-        motion = read_amc(clip.source.amc)
-    model = models[clip.source.asf]
-    return model, motion, forward(model, motion.values, motion)
+        read = reader.motion(clip.source)
+    return read.model, read.motion, forward(read.model, read.motion.values, read.motion)
 
 
-def _measure(clip: Clip, models, decoded_model, decoded_motion) -> tuple[dict, np.ndarray]:
-    """Errors of a decoded clip (a Motion read back from AMC text) against the original."""
+def _measure(clip: Clip, reader, decoded_model, decoded_motion) -> tuple[dict, np.ndarray]:
+    """Errors of a decoded clip (a Motion read back from the text written) against the original."""
     from mocapzip.motion.kinematics import forward
     from mocapzip.motion.metrics import joint_distances, skin_error
 
-    model, motion, pose = _original(clip, models)
+    model, motion, pose = _original(clip, reader)
     if decoded_motion.n_frames != motion.n_frames or decoded_motion.values.shape[1] != motion.values.shape[1]:
         raise BenchError(f"decoded clip has shape {decoded_motion.values.shape}, the original {motion.values.shape}",
                          clip.source.amc)
@@ -343,7 +337,8 @@ def _child_compress(job: dict) -> dict:
 
     settings = archive.Settings(**job["settings"])
     start = time.perf_counter()
-    summary = archive.compress(job["inputs"], job["output"], settings, asf=job["asf"], force=True, jobs=job["jobs"])
+    summary = archive.compress(job["inputs"], job["output"], settings, asf=job["asf"], force=True, jobs=job["jobs"],
+                               units=job["units"])
     return {"seconds": time.perf_counter() - start, "summary": summary}
 
 
@@ -415,12 +410,9 @@ def _transform_config(name: str, wavelet: str) -> dict:
     return {"id": name, "wavelet": wavelet, "level": None} if name == "dwt" else {"id": name}
 
 
-def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: Path) -> dict:
+def _run_mcz(task: dict, clips: list[Clip], reader, options: BenchOptions, tmp: Path) -> dict:
     from mocapzip.archive import Archive
-    from mocapzip.formats.amc import read_amc
-    from mocapzip.formats.asf import read_asf
     from mocapzip.formats.mcz import ArchiveReader
-    from mocapzip.motion.skeleton import SkeletonModel
 
     work = Path(tempfile.mkdtemp(dir=tmp))
     classes = task["classes"]
@@ -434,7 +426,7 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
                 "contact_error_cm": contact_error_cm(options.contact_error)}
     path = work / "bench.mcz"
     encoded = _run_child({"op": "compress", "inputs": [os.fspath(p) for p in options.inputs], "output": os.fspath(path),
-                          "settings": settings, "asf": options.asf, "jobs": options.jobs}, options.quiet)
+                          "settings": settings, "asf": options.asf, "units": options.units, "jobs": options.jobs}, options.quiet)
     decoded = _run_child({"op": "decompress", "archive": os.fspath(path), "output": os.fspath(work / "out")},
                          options.quiet)
     file_size = os.path.getsize(path)
@@ -447,8 +439,8 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
     if sorted(r["path"] for r in meta_rows) != sorted(by_path):
         raise BenchError("the archive does not hold the clips the bench found", path)
     clip_streams = [sizes[f"clip/{i:05d}"] for i in range(len(meta_rows))]
-    with ArchiveReader(path) as reader:
-        parts = [_payload_parts(reader.read(f"clip/{i:05d}"), coder, priors) for i in range(len(meta_rows))]
+    with ArchiveReader(path) as streams:
+        parts = [_payload_parts(streams.read(f"clip/{i:05d}"), coder, priors) for i in range(len(meta_rows))]
     class_frames: dict[int, int] = {}
     for r in meta_rows:
         class_frames[r["class"]] = class_frames.get(r["class"], 0) + r["frames"]
@@ -460,12 +452,12 @@ def _run_mcz(task: dict, clips: list[Clip], models, options: BenchOptions, tmp: 
         clip = by_path[r["path"]]
         share = clip_streams[i] + class_bytes[r["class"]] * r["frames"] / class_frames[r["class"]] \
             + shared * r["frames"] / total_frames
-        skeleton_file = out / PurePosixPath(r["path"]).parent / skeleton_names[r["skeleton"]]
+        written = out / r["path"]  # a BVH file holds its skeleton
+        skeleton_file = written if "bvh" in r else written.parent / skeleton_names[r["skeleton"]]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            skeleton = read_asf(skeleton_file)
-            motion = read_amc(out / r["path"], skeleton)
-        errors, distances[clip.path] = _measure(clip, models, SkeletonModel.from_asf(skeleton), motion)
+            read_back = reader.motion(ClipSource(written, skeleton_file, r["path"]))
+        errors, distances[clip.path] = _measure(clip, reader, read_back.model, read_back.motion)
         basis_share = class_bytes[r["class"]] * r["frames"] / class_frames[r["class"]]
         rows.append({**_sizes(clip, share, clip_streams[i]), **parts[i], "basis_bytes": basis_share, **errors,
                      "codec_reported_error_cm": r.get("error_cm")})
@@ -530,7 +522,7 @@ def _mcz_label(task: dict, options: BenchOptions | None = None) -> str:
     return ", ".join(parts)
 
 
-def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOptions) -> dict:
+def _run_mcz_without_pca(task: dict, clips: list[Clip], reader, options: BenchOptions) -> dict:
     """--classes none: each clip coded with the codec's stages and an identity basis (see the module doc)."""
     from mocapzip.archive import Settings
     from mocapzip.codec.basis import ClassBasis
@@ -550,7 +542,8 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            loaded = load_clips([clip.source], task["representation"], axes_from_positions=axes_from_positions)[0]
+            loaded = load_clips([clip.source], task["representation"], axes_from_positions=axes_from_positions,
+                                units=options.units)[0]
         basis = ClassBasis(np.zeros(loaded.poses.shape[1]), np.eye(loaded.poses.shape[1]), np.ones(loaded.poses.shape[1]))
         coding = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
         payload, twist_flips = coding.coded.payload(), coding.twists
@@ -562,13 +555,17 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
                   "twist": flips_from_ranges(twist_flips, model, n_frames)}
         values = channels_from_weighted(model, representation, layout, poses, root, params, loaded.axis_weight_cm)
         m = loaded.motion
-        text = format_amc(Motion(m.bones, m.counts, values, m.frame_numbers, m.header, clip.path))  # as decompress does
+        if loaded.bvh_text is None:
+            text = format_amc(Motion(m.bones, m.counts, values, m.frame_numbers, m.header, clip.path))  # as decompress does
         decode_seconds += time.perf_counter() - middle
         encode_seconds += middle - start
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            decoded = parse_amc(text.encode("latin-1", "replace"), clip.path)
-        errors, distances[clip.path] = _measure(clip, models, models[clip.source.asf], decoded)
+        if loaded.bvh_text is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                decoded = parse_amc(text.encode("latin-1", "replace"), clip.path)
+        else:  # the numbers as a BVH file writes them
+            decoded = replace(m, values=loaded.as_written(values))
+        errors, distances[clip.path] = _measure(clip, reader, reader.skeleton(clip.source.asf)[1], decoded)
         rows.append({**_sizes(clip, len(payload), len(payload)), **_payload_parts(payload, "context", None), "basis_bytes": 0, **errors})
     settings = {"error_cm": task["error_cm"], "representation": task["representation"],
                 "transform": _transform_config(task["transform"], options.wavelet), "classes": NO_PCA,
@@ -588,7 +585,7 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], models, options: BenchOp
 
 def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Path) -> dict:
     work = Path(tempfile.mkdtemp(dir=tmp))
-    skeletons = sorted({c.source.asf for c in clips})
+    skeletons = sorted({c.source.asf for c in clips if c.source.asf != c.source.amc})  # a BVH file holds its own
     originals = [c.source.amc for c in clips] + skeletons
     packed = [work / f"{i:05d}.{codec}" for i in range(len(originals))]
     restored = [work / f"{i:05d}.out" for i in range(len(originals))]
@@ -606,12 +603,12 @@ def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Pat
         frames_per_skeleton[c.source.asf] = frames_per_skeleton.get(c.source.asf, 0) + c.frames
     rows = []
     for c, size in zip(clips, sizes):
-        share = size + skeleton_bytes[c.source.asf] * c.frames / frames_per_skeleton[c.source.asf]
+        share = size + skeleton_bytes.get(c.source.asf, 0) * c.frames / frames_per_skeleton[c.source.asf]
         rows.append({**_sizes(c, share, size), "mean_error_cm": 0.0, "p99_error_cm": 0.0, "max_error_cm": 0.0,
                      "skin_error": 0.0, "foot_skate_cm_s": 0.0, "contact_frames": 1})
     shutil_rmtree(work)
     name = {"xz": f"xz -{XZ_PRESET}", "zstd": f"zstd -{ZSTD_LEVEL}"}[codec]
-    return _finish_run({"codec": codec, "label": f"{name} (lossless, per AMC file)", "target_error_cm": 0.0,
+    return _finish_run({"codec": codec, "label": f"{name} (lossless, per file)", "target_error_cm": 0.0,
                         "settings": {"level": XZ_PRESET if codec == "xz" else ZSTD_LEVEL},
                         "error_measured_on": "lossless: restored files compared byte for byte"},
                        rows, clips, None,
@@ -622,16 +619,14 @@ def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Pat
 # ----------------------------------------------------------------------------- Hou et al.
 
 
-def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOptions) -> list[dict]:
+def _run_hou(targets: list[float], clips: list[Clip], reader, options: BenchOptions) -> list[dict]:
     from mocapzip.bench.baselines import hou as hou
-    from mocapzip.formats.amc import read_amc
-    from mocapzip.motion.kinematics import forward
 
     grid = {"grid_l": hou.GRID_L, "grid_k": hou.GRID_K, "grid_q": hou.GRID_Q, **(options.hou_grid or {})}
     chosen: dict[float, dict[str, dict]] = {t: {} for t in targets}
     search_seconds = 0.0
     for clip in progress(clips, desc="hou sweep", unit="clip"):
-        _, _, pose = _original(clip, models)
+        _, _, pose = _original(clip, reader)
         start = time.perf_counter()
         points = hou.sweep(pose.positions, targets=targets, **grid)
         search_seconds += time.perf_counter() - start
@@ -648,10 +643,7 @@ def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOpti
                 continue
             params = hou.HouParams(point["L"], point["k"], point["Q"])
             start = time.perf_counter()
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                motion = read_amc(clip.source.amc)
-            positions = forward(models[clip.source.asf], motion.values, motion).positions
+            positions = _original(clip, reader)[2].positions
             blob = hou.encode(positions, params)
             middle = time.perf_counter()
             decoded = hou.decode(blob)
@@ -660,7 +652,7 @@ def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOpti
             d = np.linalg.norm(decoded - positions, axis=-1)
             distances[clip.path] = d.astype(np.float32)
             rows.append({**_sizes(clip, len(blob), len(blob)), **_error_stats(d), "skin_error": None,
-                         **_skate(models[clip.source.asf], positions, decoded, clip.fps), "hou": params.as_dict()})
+                         **_skate(reader.skeleton(clip.source.asf)[1], positions, decoded, clip.fps), "hou": params.as_dict()})
         run = _finish_run({"codec": "hou", "label": f"Hou et al. 2015, best (L, k, Q) per clip for mean error <= {t:g} cm",
                            "target_error_cm": t,
                            "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16,
@@ -674,7 +666,7 @@ def _run_hou(targets: list[float], clips: list[Clip], models, options: BenchOpti
     return runs
 
 
-def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: BenchOptions) -> list[dict]:
+def _run_hou_shared(targets: list[float], clips: list[Clip], reader, options: BenchOptions) -> list[dict]:
     from mocapzip.bench.baselines import hou as hou
 
     grid = {"grid_l": hou.GRID_L, "grid_k": hou.GRID_K, "grid_q": hou.GRID_Q, **(options.hou_grid or {})}
@@ -687,7 +679,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: Be
     seconds = {t: [0.0, 0.0] for t in targets}
     search_seconds = 0.0
     for members in progress(list(groups.values()), desc="hou-shared", unit="subject"):
-        positions = [_original(c, models)[2].positions for c in members]
+        positions = [_original(c, reader)[2].positions for c in members]
         start = time.perf_counter()
         found = hou.sweep_shared(positions, targets, **grid)
         search_seconds += time.perf_counter() - start
@@ -698,7 +690,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: Be
                 missing[t] += [c.path for c in members]
                 continue
             start = time.perf_counter()  # the timed encode: read, forward kinematics, basis, every clip
-            encoded = [_original(c, models)[2].positions for c in members]
+            encoded = [_original(c, reader)[2].positions for c in members]
             basis_blob, streams = hou.encode_shared(encoded, choice["L"], choice["k"], [x["Q"] for x in choice["sequences"]])
             middle = time.perf_counter()
             basis = hou.decode_basis(basis_blob)
@@ -710,7 +702,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], models, options: Be
                 distances[t][clip.path] = d.astype(np.float32)
                 share = len(stream) + len(basis_blob) * clip.frames / group_frames
                 rows[t].append({**_sizes(clip, share, len(stream)), **_error_stats(d), "skin_error": None,
-                                **_skate(models[clip.source.asf], original, back, clip.fps),
+                                **_skate(reader.skeleton(clip.source.asf)[1], original, back, clip.fps),
                                 "basis_bytes": len(basis_blob) * clip.frames / group_frames,
                                 "hou": {"L": choice["L"], "k": choice["k"], "Q": x["Q"]}})
     runs = []

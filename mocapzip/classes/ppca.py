@@ -175,7 +175,7 @@ def classification_poses(clip) -> np.ndarray:
         return clip.poses
     layout = clip.layout
     columns = layout.columns()
-    order = [b for b in clip.model.names if b in columns and b != "root"]
+    order = [b for b in clip.model.names if b in columns and b != clip.model.names[0]]
     values = np.concatenate([clip.poses[:, columns[b]] for b in order], axis=1)
     return np.degrees(values) if layout.angle_unit == "rad" else values
 

@@ -1,4 +1,5 @@
-"""Finding clips on disk: every AMC under the inputs, each paired with its skeleton (ASF).
+"""Finding clips on disk: every AMC under the inputs, each paired with its skeleton (ASF), and
+every BVH file, which is its own skeleton.
 
 An AMC pairs with the ASF the user names (`--asf`), or with the one in its own folder. A folder
 may hold several: copies of one skeleton (CMU ships `07.asf` and `07-walk.asf`, which differ
@@ -23,15 +24,23 @@ from mocapzip.formats.text import check_regular_file, read_regular_file
 
 @dataclass(frozen=True)
 class ClipSource:
-    """One AMC file, its skeleton file, and the path it is stored under in an archive."""
+    """One clip's motion file, its skeleton file, and the path it is stored under in an archive."""
 
-    amc: Path
-    asf: Path | None
+    amc: Path  # the motion: an AMC, or a BVH file
+    asf: Path | None  # the skeleton: an ASF, or the BVH file itself
     relpath: str  # POSIX path relative to the input directory (or the bare file name)
 
 
 def _is_amc(name: str) -> bool:
     return name.lower().endswith(".amc")
+
+
+def is_bvh(name: str) -> bool:
+    return name.lower().endswith(".bvh")
+
+
+def _is_clip(name: str) -> bool:
+    return _is_amc(name) or is_bvh(name)
 
 
 def _is_asf(name: str) -> bool:
@@ -40,7 +49,7 @@ def _is_asf(name: str) -> bool:
 
 def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = None,
                require_skeleton: bool = True, skipped: list | None = None) -> list[ClipSource]:
-    """All AMC files under `inputs` (directories are walked recursively), sorted by stored path.
+    """All AMC and BVH files under `inputs` (directories are walked recursively), sorted by stored path.
 
     Raises MocapFormatError for a missing input, a folder that cannot be listed, or (with
     `require_skeleton`) an AMC with no skeleton or an ambiguous one; without `require_skeleton`
@@ -58,10 +67,10 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
         if path.is_dir():
             clips += _amcs_under(path, skipped)
         elif path.is_file():
-            if not _is_amc(path.name):
+            if not _is_clip(path.name):
                 if _is_asf(path.name):
                     continue  # a skeleton named on the command line pairs by folder below
-                raise MocapFormatError("not an AMC file (expected the .amc extension)", path)
+                raise MocapFormatError("not a clip (expected the .amc or .bvh extension)", path)
             clips.append(ClipSource(path, None, path.name))
         elif path.is_symlink():
             raise MocapFormatError("symbolic link loop or dangling symbolic link", path)
@@ -76,6 +85,9 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
         seen[clip.relpath] = clip.amc
     paired, folders = [], {}
     for c in clips:
+        if is_bvh(c.amc.name):
+            paired.append(ClipSource(c.amc, c.amc, c.relpath))
+            continue
         try:
             if forced is None and c.amc.parent not in folders:
                 folders[c.amc.parent] = _skeletons_in_folder(c.amc.parent)
@@ -92,7 +104,7 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
 
 
 def _amcs_under(top: Path, skipped: list | None) -> list[ClipSource]:
-    """Every AMC under folder `top`, stored relative to it. A folder that cannot be listed
+    """Every AMC and BVH file under folder `top`, stored relative to it. A folder that cannot be listed
     raises MocapFormatError or, with a `skipped` list, is recorded there under its path."""
 
     def unlisted(error: OSError) -> None:
@@ -106,7 +118,7 @@ def _amcs_under(top: Path, skipped: list | None) -> list[ClipSource]:
     for folder, dirs, files in os.walk(top, onerror=unlisted):
         dirs.sort()
         for name in sorted(files):
-            if _is_amc(name):
+            if _is_clip(name):
                 amc = Path(folder) / name
                 found.append(ClipSource(amc, None, amc.relative_to(top).as_posix()))
     return found

@@ -48,12 +48,14 @@ class Glitch:
         return f"{frames}: {self.bone}: {self.kind}: {self.detail}"
 
 
-def find_glitches(skeleton: Skeleton, model: SkeletonModel, motion: Motion, positions: np.ndarray,
+def find_glitches(skeleton: Skeleton | None, model: SkeletonModel, motion: Motion, positions: np.ndarray,
                   fps: float) -> list[Glitch]:
-    """Every glitch of a clip, in frame order; `positions`: its joints (frames x joints x 3, cm)."""
+    """Every glitch of a clip, in frame order; `positions`: its joints (frames x joints x 3, cm);
+    `skeleton`: its ASF, whose limits it checks (None: a BVH clip, which states no limits)."""
     numbers = motion.frame_numbers
     found = _jumps(model, positions, fps, numbers) + _held(model, motion, numbers)
-    found += beyond_limits(skeleton, model, motion)
+    if skeleton is not None:
+        found += beyond_limits(skeleton, model, motion)
     return sorted(found, key=lambda g: (g.first, g.bone, g.kind))
 
 
@@ -73,7 +75,7 @@ def _jumps(model: SkeletonModel, positions: np.ndarray, fps: float, numbers: np.
     found = []
     for j in np.flatnonzero(starts.any(axis=0)):
         for a, b in _runs(starts[:, j]):
-            found.append(Glitch("jump", model.names[j], int(numbers[a]), int(numbers[b]),
+            found.append(Glitch("jump", model.point_name(j), int(numbers[a]), int(numbers[b]),
                                 f"moves {speed[a:b, j].max() / fps:.1f} cm in one frame "
                                 f"({speed[a:b, j].max() / 100:.0f} m/s)"))
     return found

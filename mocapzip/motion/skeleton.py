@@ -54,6 +54,12 @@ class SkeletonModel:
     channels: tuple[tuple[str, ...], ...]  # AMC values of each joint, in file order ('tx', 'rx', ...)
     cm_per_unit: float  # file length unit -> cm
     angle_unit: str  # 'deg' or 'rad', from the ASF units
+    points: tuple[str, ...] | None = None  # what each joint's position is called, where not its name (BVH)
+
+    def point_name(self, j: int) -> str:
+        """The name of joint j's position (its end point) for messages: an ASF bone's, or the BVH
+        joint or End Site there (`motion.bvh_skeleton`)."""
+        return self.names[j] if self.points is None else self.points[j]
 
     @classmethod
     def from_asf(cls, skeleton: Skeleton) -> "SkeletonModel":

@@ -3,25 +3,62 @@
 It shares no code with mocapzip: tests/test_reference_decoder.py decodes archives with both and
 compares, so a reader of the spec can trust that the spec, not the package, defines the format.
 The parts follow the spec's chapters: `container` (layout, index, checksums), `streams` (lossy
-codec streams, byte level), `lossless` (lossless clip streams) and `geometry` (decoding a lossy
-clip from coefficients to AMC values). Trusted test input only: it raises ValueError on what it
-checks, but it is not hardened against crafted files as mocapzip is.
+codec streams, byte level), `lossless` (lossless clip streams), `geometry` (decoding a lossy
+clip from coefficients to AMC values) and `bvh` (decoding a BVH clip, format 8 on). Trusted test
+input only: it raises ValueError on what it checks, but it is not hardened against crafted files
+as mocapzip is.
 """
 
-from . import geometry, lossless, streams
+from . import bvh, geometry, lossless, streams
 from .container import Container, read_meta, read_skeletons
 
 
-def decode_archive(path) -> dict:
-    """{clip path: float64 (frames, channels) AMC values} for every clip of the archive at `path`."""
+def bvh_hierarchies(meta, skeletons, version) -> dict:
+    """{skeleton index: bvh.Hierarchy} for the `skeletons` entries of `format` "bvh" (format 8 on)."""
+    hierarchies = {}
+    for k, entry in enumerate(meta["skeletons"]):
+        if set(entry) == {"name"}:
+            continue
+        if version < 8 or entry.get("format") != "bvh":
+            raise ValueError(f"skeletons[{k}]: fields {sorted(entry)} (a BVH entry, format 8 on)")
+        hierarchies[k] = bvh.Hierarchy(skeletons[k].encode("latin-1"), entry)
+    for row in meta["clips"]:
+        if ("bvh" in row) != (row["skeleton"] in hierarchies):
+            raise ValueError(f"{row['path']}: rows of BVH clips, exactly, have `bvh`")
+    return hierarchies
+
+
+def decode_archive(path, bvh_clips: dict | None = None) -> dict:
+    """{clip path: float64 values} for every clip of the archive at `path`: an AMC clip's (frames,
+    channels) AMC values, a BVH clip's (frames, width) file values.
+
+    If `bvh_clips` is a dict it receives, per BVH clip, {"text": the bytes of the file `decompress`
+    writes, "model_values": a lossy clip's channel values v of its model (None when lossless)}.
+    """
     with Container(path) as container:
         version = container.format_version
         meta = read_meta(container.read("meta"), version)
         skeletons = read_skeletons(container.read("skeletons"), version)
+        hierarchies = bvh_hierarchies(meta, skeletons, version)
         settings = meta["settings"]
+        values = {}
+
+        def bvh_clip(row, file_values, model_values=None):
+            """A BVH clip's values, checked; its text and model values to `bvh_clips`."""
+            bvh.check_values(row, file_values)
+            if bvh_clips is not None:
+                text = bvh.text(hierarchies[row["skeleton"]], row, file_values)
+                bvh_clips[row["path"]] = {"text": text, "model_values": model_values}
+            return file_values
+
         if settings.get("lossless", False):
-            return {row["path"]: lossless.lossless_channels(container.read(f"clip/{index:05d}"), row, version)
-                    for index, row in enumerate(meta["clips"])}
+            for index, row in enumerate(meta["clips"]):
+                hierarchy = hierarchies.get(row["skeleton"])
+                if hierarchy is not None:
+                    bvh.check_row(row, hierarchy.layout(), lossless=True)
+                decoded = lossless.lossless_channels(container.read(f"clip/{index:05d}"), row, version)
+                values[row["path"]] = decoded if hierarchy is None else bvh_clip(row, decoded)
+            return values
 
         coder = settings.get("coefficient_coder", "zstd")
         priors = streams.read_priors(container.read("priors")) if coder == "primed" else None
@@ -33,7 +70,6 @@ def decode_archive(path) -> dict:
                 bases[class_index] = streams.class_basis(container.read(f"class/{class_index:04d}"), version)
             return bases[class_index]
 
-        values = {}
         for index, row in enumerate(meta["clips"]):
             def coefficients(stream, class_index, rows, index=index):
                 """A coded stream's class mean and basis and its dequantised coefficients."""
@@ -43,11 +79,30 @@ def decode_archive(path) -> dict:
                                                        basis.shape[1], root_track, priors)
                 return mean, basis, pose, root
 
-            decoded = geometry.lossy_channels(settings, version, row, skeletons[row["skeleton"]], coefficients)
+            hierarchy = hierarchies.get(row["skeleton"])
+            if hierarchy is None:
+                def skeleton(axes_from_positions, text=skeletons[row["skeleton"]]):
+                    return geometry.Skeleton(text, axes_from_positions)
+            else:  # "Decoding a BVH clip": the model in place of the ASF's
+                model = bvh.Model(hierarchy)
+                bvh.check_row(row, (model.bones, model.counts), lossless=False)
+                skeleton = model.skeleton
+
+            decoded = geometry.lossy_channels(settings, version, row, skeleton, coefficients)
             if "patched_frames" in row:
                 if version < 5:
                     raise ValueError("patched_frames in a format before 5")
                 geometry.add_patches(decoded, streams.frame_patches(container.read(f"patch/{index:05d}"), row),
-                                     row, skeletons[row["skeleton"]])
-            values[row["path"]] = decoded
+                                     row, skeleton(False))
+            if hierarchy is None:
+                values[row["path"]] = decoded
+                continue
+            extra = None
+            if row["bvh"].get("extra_root"):
+                if model.extra_root is None:
+                    raise ValueError(f"{row['path']}: bvh.extra_root, but the hierarchy has no extra root")
+                channels = hierarchy.joints[model.extra_root].channels
+                extra = lossless.lossless_channels(container.read(f"extra_root/{index:05d}"),
+                                                   {"frames": row["frames"], "counts": [len(channels)]}, version)
+            values[row["path"]] = bvh_clip(row, model.file_values(decoded, extra), decoded)
         return values

@@ -17,7 +17,7 @@ import numpy as np
 import zstandard
 
 MAGIC = "MCZ mocapzip archive"
-NEWEST_FORMAT = 7
+NEWEST_FORMAT = 8  # "Versions": format 8 has format 7's container
 MAX_ZSTD_OUTPUT = 1 << 28  # streams spec, "zstd frames": 2^28 bytes at most
 # "Dictionaries": the files of the package source tree, by their SHA-256
 DICTIONARY_FOLDER = Path(__file__).resolve().parents[2] / "mocapzip" / "archive" / "dictionaries"
@@ -170,7 +170,7 @@ class Container:
         self._where = {n: (o, l, c) for n, o, l, c in zip(names, offsets, lengths, crcs)}
 
     def _index(self):
-        """Format 7: UTF-8 JSON {tool, names, lengths, crc32}, in attribute `index` or else as the one
+        """Format 7 on: UTF-8 JSON {tool, names, lengths, crc32}, in attribute `index` or else as the one
         string of dataset `index` (deflated by HDF5); CRC in `index_crc32`."""
         attrs = self._file.attrs
         index_bytes = bytes(attrs["index"]) if "index" in attrs else bytes(self._file["index"][0])

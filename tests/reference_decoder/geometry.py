@@ -277,13 +277,12 @@ class Skeleton:
             self.names.append(name)
             self.parent.append(parent)
             stack.extend((child, len(self.names) - 1) for child in reversed(hierarchy.get(name, [])))
-        self.index = {name: j for j, name in enumerate(self.names)}
         count = len(self.names)
 
-        # per joint: axis matrix C, bone vector V (cm), length L, channels, rotation axes
+        # per joint: axis matrix C, bone vector V (cm), channels
         self.C = np.zeros((count, 3, 3))
         self.V = np.zeros((count, 3))
-        self.channels, self.axes = [], []
+        self.channels = []
         for j, name in enumerate(self.names):
             if j == 0:
                 self.C[j] = euler(np.array(root["orientation"]) * u, root["axis"])
@@ -293,10 +292,34 @@ class Skeleton:
                 self.C[j] = euler(np.array(bone["axis"]) * u, bone["axis_order"])
                 self.V[j] = np.array(bone["direction"]) * bone["length"] * self.cm_per_unit
                 channels = bone["dof"]
-                if any(ch[0] != "r" for ch in channels):
-                    raise ValueError(f"ASF: bone {name!r} has a dof other than rx ry rz: cannot decode")
             self.channels.append(channels)
-            self.axes.append("".join(ch[1] for ch in channels if ch[0] == "r"))
+        self.derive(axes_from_positions)
+
+    @classmethod
+    def from_model(cls, names, parent, V, channels, cm_per_unit, axes_from_positions):
+        """A model given joint by joint rather than by an ASF (a BVH hierarchy's, "Decoding a BVH
+        clip"): every axis matrix the identity, angles in degrees, V in cm, parents first."""
+        sk = cls.__new__(cls)
+        sk.names, sk.parent, sk.channels = list(names), list(parent), [list(c) for c in channels]
+        sk.radians, sk.cm_per_unit = False, float(cm_per_unit)
+        sk.V = np.array(V, dtype=np.float64).reshape(len(sk.names), 3)
+        sk.C = np.broadcast_to(np.eye(3), (len(sk.names), 3, 3)).copy()
+        if len(set(sk.names)) != len(sk.names):
+            raise ValueError("model: two joints of one name")
+        if any(not 0 <= p < j for j, p in enumerate(sk.parent) if j) or sk.parent[:1] != [-1]:
+            raise ValueError("model: a parent that does not precede its joint")
+        sk.derive(axes_from_positions)
+        return sk
+
+    def derive(self, axes_from_positions):
+        """§5, from the joints' names, parents, C, V and channels: rotation axes, lengths, short bones,
+        root proxy, faux matrices, solved bones and height."""
+        count = len(self.names)
+        self.index = {name: j for j, name in enumerate(self.names)}
+        for j in range(1, count):
+            if any(ch[0] != "r" for ch in self.channels[j]):
+                raise ValueError(f"bone {self.names[j]!r} has a dof other than rx ry rz: cannot decode")
+        self.axes = ["".join(ch[1] for ch in channels if ch[0] == "r") for channels in self.channels]
         self.L = norm(self.V)
 
         # derived: short bones, root proxy, faux matrices, solved bones, height
@@ -614,8 +637,10 @@ def pose_weights(sk, representation, width, axis_weight_cm):
     return w
 
 
-def lossy_channels(settings, format_version, row, skeleton_text, coefficients):
+def lossy_channels(settings, format_version, row, skeleton, coefficients):
     """The clip's decoded AMC values, frames x sum(counts) float64 (pipeline steps 1-6, §1-§10).
+
+    skeleton(axes_from_positions) -> the clip's Skeleton (§5: an ASF's; or a BVH hierarchy's model).
 
     coefficients(stream_name, class_index, rows) -> (mean, basis, pose, root) gives a stream's
     dequantised class basis and coefficients; stream_name is None for an unsegmented clip's own
@@ -639,7 +664,7 @@ def lossy_channels(settings, format_version, row, skeleton_text, coefficients):
             raise ValueError(f"pose width {wposes.shape[1]} != sum(counts) {width}")
         values = wposes.copy()  # w = 1: the weighted poses are the AMC values
     elif representation in MARKER_REPRESENTATIONS:
-        sk = Skeleton(skeleton_text, axes_from_positions)
+        sk = skeleton(axes_from_positions)
         poses = wposes / pose_weights(sk, representation, wposes.shape[1], settings["axis_weight_cm"])
         flips = row.get("twist_flips", {})  # only 2-axis solved bones use them (§6)
         for name in flips:
@@ -657,10 +682,9 @@ def lossy_channels(settings, format_version, row, skeleton_text, coefficients):
     return values
 
 
-def add_patches(values, patches, row, skeleton_text):
-    """§8a: the frame patches added to the decoded values, in place."""
+def add_patches(values, patches, row, sk):
+    """§8a: the frame patches added to the decoded values, in place (sk: the clip's Skeleton)."""
     step_cm, frames = patches
-    sk = Skeleton(skeleton_text, False)
     to_unit = 180.0 / PI if row["angle_unit"] == "deg" else 1.0
     base = []
     for name, count in zip(row["bones"], row["counts"]):
