@@ -33,6 +33,7 @@ def main():
       mcz inspect ../shared/data/cmu            what is there: clips, frames, skeletons
       mcz compress ../shared/data/cmu -o db.mcz one archive, every clip within 1 cm
       mcz decompress db.mcz -o out/             the ASF/AMC and BVH files back
+      mcz convert clips/ -o bvh/                ASF/AMC to BVH and back, same joint positions
 
     Run `mcz COMMAND --help` for the options of each command.
     """
@@ -398,6 +399,36 @@ def test_archive(archive_path, jobs, quiet):
         count = len(opened.clips)
     if not quiet:
         click.echo(f"{archive_path}: OK ({_count(count, 'clip')})", err=True)
+
+
+@main.command()
+@click.argument("inputs", nargs=-1, required=True, type=click.Path())
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_not_stdout,
+              help="Folder for the converted files, at the inputs' relative paths.")
+@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: as compress pairs them).")
+@click.option("--units", type=click.Choice(UNITS), default=None,
+              help="Unit of the lengths in BVH files (default: inferred from the skeleton's size).")
+@click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
+@reports_errors
+def convert(inputs, output, asf, units, force):
+    """Convert the clips under INPUTS to the other format: each AMC to BVH, each BVH to ASF/AMC.
+
+    Joint positions stay where they were, within 0.01 cm (6 significant digits are written).
+    A BVH written from ASF/AMC: one joint per ASF bone, at the bone's start, rotated as the bone;
+    a root with 6 channels, the others Zrotation Xrotation Yrotation; lengths in cm; the ASF's base
+    pose is its rest pose; the clip's frame rate. An ASF/AMC written from BVH: mcz's model of the
+    hierarchy (docs/bvh.md), bones in cm with identity axes, the clip's frame rate in the ASF's
+    documentation (fps:30). Position channels other than the root's must stand still.
+
+    \b
+    Examples:
+      mcz convert ../shared/data/cmu/09 -o bvh/        09_01.amc -> bvh/09_01.bvh, ...
+      mcz convert ../shared/data/bvh-bandai -o amc/    x.bvh -> amc/x.amc and amc/x.asf
+    """
+    from mocapzip.convert import convert as convert_clips
+
+    summary = convert_clips(list(inputs), output, asf=asf, units=units, force=force)
+    click.echo(f"{_count(summary['clips'], 'clip')} -> {_count(len(summary['written']), 'file')} in {output}", err=True)
 
 
 main.add_command(bench)

@@ -1,0 +1,127 @@
+"""`mcz convert` (mocapzip/convert.py): ASF/AMC to BVH and back, joint positions kept within
+TOLERANCE_CM, on real clips of every exporter in the shared data. Positions are measured with
+Acclaim kinematics written here on the reference decoder's ASF reader (no mocapzip code), and
+with BVH kinematics written in tests/test_bvh_pipeline.py from the BVH convention."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mocapzip.cli.main import main
+from mocapzip.convert import TOLERANCE_CM, amc_to_bvh, bvh_to_amc
+from mocapzip.formats.amc import read_amc
+from mocapzip.formats.asf import read_asf
+from mocapzip.formats.bvh import read_bvh
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.motion.bvh_skeleton import bvh_skeleton
+from mocapzip.motion.kinematics import forward
+from mocapzip.motion.skeleton import SkeletonModel
+from reference_decoder.geometry import Skeleton, euler
+from test_bvh_pipeline import file_positions
+
+AMC_CLIPS = [("cmu/09/09.asf", "cmu/09/09_01.amc", 120.0),  # CMU: length 0.45 (inches / 0.45), 120 fps stated nowhere
+             ("hdm05/bd/HDM_bd.asf", "hdm05/bd/HDM_bd_depositFloorR_001_120.amc", 120.0),
+             ("other-vicon-blade/walk_200fps/walkMoCapVideo.asf",  # Vicon Blade: 200 fps in the AMC header
+              "other-vicon-blade/walk_200fps/walkMoCapVideo.amc", 200.0)]
+BVH_CLIPS = ["cmu-bvh/10/10_03.bvh", "bvh-bandai/dataset-1_bow_active_001.bvh"]
+
+
+def asf_positions(skeleton, motion) -> tuple[tuple[str, ...], np.ndarray]:
+    model = SkeletonModel.from_asf(skeleton)
+    return model.names, forward(model, motion.values, motion).positions
+
+
+def reference_positions(asf: Path, amc: Path) -> tuple[list[str], np.ndarray]:
+    """(joint names, (frames, joints, 3) cm) of an ASF/AMC pair, read by the reference decoder's
+    ASF reader (tests/reference_decoder: written from docs/format.md, no mocapzip code) and the
+    AMC lines and Acclaim kinematics (R_j = C_j^T M_j C_j R_parent, T_j = T_parent + V_j R_j) here."""
+    sk = Skeleton(asf.read_bytes().decode("latin-1"), False)
+    frames: list[dict[str, list[float]]] = []
+    for line in amc.read_text(encoding="latin-1").splitlines():
+        words = line.split()
+        if not words or words[0][0] in "#:":
+            continue
+        if len(words) == 1 and words[0].isdigit():
+            frames.append({})
+        else:
+            frames[-1][words[0]] = [float(w) for w in words[1:]]
+    unit = 1.0 if sk.radians else np.pi / 180
+    rotations, positions = [], []
+    for j, name in enumerate(sk.names):
+        values = np.array([frame.get(name, [0.0] * len(sk.channels[j])) for frame in frames])
+        angles = [values[:, k] * unit for k, c in enumerate(sk.channels[j]) if c[0] == "r"]
+        m = euler(np.stack(angles, axis=-1), sk.axes[j]) if angles else np.eye(3)[None]
+        parent = sk.parent[j]
+        r = sk.C[j].T @ m @ sk.C[j] @ (rotations[parent] if parent >= 0 else np.eye(3))
+        rotations.append(np.broadcast_to(r, (len(frames), 3, 3)))
+        if parent < 0:
+            t = np.zeros((len(frames), 3))
+            for k, c in enumerate(sk.channels[j]):
+                if c[0] == "t":
+                    t[:, "xyz".index(c[1])] = values[:, k] * sk.cm_per_unit
+        else:
+            t = positions[parent] + np.einsum("i,fij->fj", sk.V[j], rotations[j])
+        positions.append(t)
+    return sk.names, np.stack(positions, axis=1)
+
+
+@pytest.mark.parametrize("asf, amc, fps", AMC_CLIPS, ids=lambda v: str(v).split("/")[0])
+def test_amc_to_bvh_puts_every_joint_where_it_was(shared_data, tmp_path, asf, amc, fps):
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(shared_data / amc), "--asf", str(shared_data / asf), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    skeleton = read_asf(shared_data / asf)
+    names, expected = asf_positions(skeleton, read_amc(shared_data / amc, skeleton))
+    reference_names, reference = reference_positions(shared_data / asf, shared_data / amc)
+    assert list(names) == reference_names and np.abs(reference - expected).max() < 1e-9  # two readers agree
+    written = read_bvh(out / (amc.rsplit("/", 1)[1][:-4] + ".bvh"))
+    assert written.fps == fps and written.n_frames == len(expected)
+    got = file_positions(written)  # {joint or "<joint> End Site": cm (the BVH is in cm)}
+    model = SkeletonModel.from_asf(skeleton)
+    for j, name in enumerate(names):  # an ASF joint is the end of its bone: its first child's start, or an End Site
+        children = [model.names[k] for k in range(model.n_joints) if model.parents[k] == j]
+        point = name if j == 0 else children[0] if children else f"{name} End Site"
+        assert np.abs(got[point] - expected[:, j]).max() < TOLERANCE_CM, (amc, name)
+
+
+@pytest.mark.parametrize("path", BVH_CLIPS, ids=lambda p: p.split("/")[0])
+def test_bvh_to_amc_puts_every_joint_where_it_was(shared_data, tmp_path, path):
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(shared_data / path), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    stem = path.rsplit("/", 1)[1][:-4]
+    assert sorted(p.name for p in out.iterdir()) == [f"{stem}.amc", f"{stem}.asf"]
+    source = read_bvh(shared_data / path)
+    skeleton = read_asf(out / f"{stem}.asf")
+    assert skeleton.frame_rate == source.fps and skeleton.length_scale == 2.54  # lengths in cm
+    names, got = reference_positions(out / f"{stem}.asf", out / f"{stem}.amc")  # read by a reader not ours
+    expected = file_positions(source)
+    points = bvh_skeleton(source.joints, None).model.points  # which BVH point each ASF joint is
+    assert len(points) == len(names)
+    for j, point in enumerate(points):
+        assert np.abs(got[:, j] - expected[point]).max() < TOLERANCE_CM, (path, point)
+
+
+def test_amc_to_bvh_and_back_keeps_the_joints(shared_data, tmp_path):
+    skeleton = read_asf(shared_data / "cmu/09/09.asf")
+    motion = read_amc(shared_data / "cmu/09/09_01.amc", skeleton)
+    bvh = amc_to_bvh(skeleton, motion, 120.0)
+    back_skeleton, back_motion = bvh_to_amc(replace(bvh, path=str(tmp_path / "09_01.bvh")), "cm")
+    _, before = asf_positions(skeleton, motion)
+    _, after = asf_positions(back_skeleton, back_motion)
+    # in memory, nothing printed: every joint of the source is, exactly, one of the round trip's
+    for j in range(before.shape[1]):
+        assert np.min(np.abs(after - before[:, j : j + 1]).max(axis=(0, 2))) < 1e-9
+
+
+def test_a_bvh_whose_extra_root_moves_is_refused(shared_data, tmp_path):
+    path = shared_data / "bvh-bandai/dataset-1_walk-back_normal_001.bvh"
+    with pytest.raises(MocapFormatError, match="its extra root 'joint_Root' moves: an ASF skeleton has one root"):
+        bvh_to_amc(read_bvh(path))
+    result = CliRunner().invoke(main, ["convert", str(path), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1 and "its extra root 'joint_Root' moves" in result.stderr
