@@ -408,27 +408,42 @@ def test_archive(archive_path, jobs, quiet):
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: as compress pairs them).")
 @click.option("--units", type=click.Choice(UNITS), default=None,
               help="Unit of the lengths in BVH files (default: inferred from the skeleton's size).")
-@click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
+@click.option("-f", "--force", is_flag=True, help="Overwrite existing files (never an input).")
+@click.option("--skip-bad", is_flag=True,
+              help="Leave out clips that cannot be converted (listed on stderr) instead of stopping; without it, "
+                   "nothing is written unless every clip converts.")
 @reports_errors
-def convert(inputs, output, asf, units, force):
+def convert(inputs, output, asf, units, force, skip_bad):
     """Convert the clips under INPUTS to the other format: each AMC to BVH, each BVH to ASF/AMC.
 
-    Joint positions stay where they were, within 0.01 cm (6 significant digits are written).
-    A BVH written from ASF/AMC: one joint per ASF bone, at the bone's start, rotated as the bone;
-    a root with 6 channels, the others Zrotation Xrotation Yrotation; lengths in cm; the ASF's base
-    pose is its rest pose; the clip's frame rate. An ASF/AMC written from BVH: mcz's model of the
-    hierarchy (docs/bvh.md), bones in cm with identity axes, the clip's frame rate in the ASF's
-    documentation (fps:30). Position channels other than the root's must stand still.
+    Joint positions stay where they were, within 0.01 cm. Every clip is converted before any
+    file is written; each file is written whole; inputs are never written over.
+
+    \b
+    ASF/AMC to BVH: one joint per ASF bone, at the bone's start, rotated as the bone; the root
+    with 6 channels, the others Zrotation Xrotation Yrotation (whatever the bone's dofs; a thigh
+    raised 90 degrees sits at this order's gimbal lock, so its angles may jump while the joints
+    do not); lengths in cm; the ASF's base pose as rest pose; the clip's frame rate (the AMC
+    header's or the ASF's, else 120).
+    BVH to ASF/AMC: mcz's model of the hierarchy (docs/bvh.md): bones in cm with identity axes,
+    a link bone ("P>child") for each further child of a joint, the root named root, the frame
+    rate in the ASF's documentation (fps:30). Refused: an extra root above the hips that moves,
+    a joint other than the root whose position channels move, a joint named root. --asf applies
+    to AMC files only.
 
     \b
     Examples:
       mcz convert ../shared/data/cmu/09 -o bvh/        09_01.amc -> bvh/09_01.bvh, ...
-      mcz convert ../shared/data/bvh-bandai -o amc/    x.bvh -> amc/x.amc and amc/x.asf
+      mcz convert ../shared/data/bvh-bandai -o amc/ --skip-bad
+                                                   x.bvh -> amc/x.amc and amc/x.asf (4 clips whose
+                                                   extra root moves are left out)
     """
     from mocapzip.convert import convert as convert_clips
 
-    summary = convert_clips(list(inputs), output, asf=asf, units=units, force=force)
-    click.echo(f"{_count(summary['clips'], 'clip')} -> {_count(len(summary['written']), 'file')} in {output}", err=True)
+    summary = convert_clips(list(inputs), output, asf=asf, units=units, force=force, skip_bad=skip_bad)
+    skipped = f" ({_count(len(summary['skipped']), 'clip')} skipped)" if summary["skipped"] else ""
+    click.echo(f"{_count(summary['clips'], 'clip')} -> {_count(len(summary['written']), 'file')} in {output}{skipped}",
+               err=True)
 
 
 main.add_command(bench)

@@ -18,7 +18,9 @@ from __future__ import annotations
 import io
 import os
 import re
+import secrets
 import stat
+from pathlib import Path
 
 from mocapzip.formats.errors import MocapFormatError
 
@@ -68,6 +70,30 @@ def open_regular_file(path) -> io.BufferedReader:
         return os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)
+        raise
+
+
+def write_file_atomically(path: Path, data: bytes) -> None:
+    """A new file under a random name, created exclusively (never through a link planted there),
+    then renamed over `path`: an interrupted run never leaves half a file behind; an error names `path`."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".mcz-{secrets.token_hex(8)}.tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
+    except OSError as exc:
+        raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
+    try:
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.errno and exc.filename is None:  # e.g. a full disk: name the file
+            raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
         raise
 
 

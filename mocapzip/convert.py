@@ -14,8 +14,10 @@ axes, the BVH rotation channels their dofs, in reverse order (the BVH file's tur
 clip must be what lossy coding takes: an extra root above the hips that stands still at 0, and
 no position channels moving but the root's.
 
-Both ways, values are written with 6 significant digits: joint positions agree within
-TOLERANCE_CM (tests/test_convert.py measures every shared clip it converts).
+Joint positions agree within TOLERANCE_CM: a BVH is written with 6 decimals (`%.6f`: an angle
+unwrapped far past 360 keeps its precision), an AMC as the reader's values, 6 significant digits.
+Every clip is read and converted before any file is written, and each file is written whole
+(`formats.text.write_file_atomically`); no input is ever written over.
 """
 
 from __future__ import annotations
@@ -26,16 +28,18 @@ from pathlib import Path
 import numpy as np
 
 from mocapzip.defaults import DEFAULT_FPS
-from mocapzip.formats.amc import Motion, write_amc
-from mocapzip.formats.asf import Bone, Skeleton, write_asf
-from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, read_bvh, write_bvh
+from mocapzip.formats.amc import Motion, format_amc
+from mocapzip.formats.asf import Bone, Skeleton, format_asf
+from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, read_bvh
 from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import write_file_atomically
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
-from mocapzip.inputs.discover import find_clips, is_bvh
+from mocapzip.inputs.discover import find_clips, is_bvh, record_skip
 from mocapzip.motion.bvh_skeleton import bvh_skeleton
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.rotations import euler_angles
 from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.progress import progress
 
 TOLERANCE_CM = 0.01  # joint positions after a conversion, against the source's (6 significant digits)
 
@@ -62,16 +66,22 @@ def amc_to_bvh(skeleton: Skeleton, motion: Motion, fps: float) -> Bvh:
         end_site = None if children[j] else model.offsets[j]
         joints.append(BvhJoint(name, parent, offset, channels, end_site))
     values = np.concatenate(columns, axis=1)
-    return Bvh(joints, 1.0 / fps, values, style=BvhStyle("g6", " ", "", "\n"), path=motion.path)
+    return Bvh(joints, 1.0 / fps, values, style=BvhStyle("f6", " ", "", "\n"), path=motion.path)
 
 
 def bvh_to_amc(bvh: Bvh, units: str | None = None) -> tuple[Skeleton, Motion]:
     """The ASF skeleton and AMC clip with `bvh`'s joint positions (lengths in cm)."""
-    model_of = bvh_skeleton(bvh.joints, units, bvh.path)
-    motion = model_of.motion(bvh, lossless=False)  # MocapFormatError where a fixed channel moves
-    if model_of.above_values(bvh) is not None:
+    if not bvh.n_frames:
+        raise MocapFormatError("no frames to convert", bvh.path)
+    hierarchy = bvh_skeleton(bvh.joints, units, bvh.path)
+    hierarchy.check_fixed(bvh, why="an ASF skeleton's bones keep their length")
+    if hierarchy.above_values(bvh) is not None:
         raise MocapFormatError(f"its extra root '{bvh.joints[0].name}' moves: an ASF skeleton has one root", bvh.path)
-    model = model_of.model
+    model, motion = hierarchy.model, hierarchy.motion(bvh, lossless=False)
+    if "root" in model.names[1:]:
+        raise MocapFormatError("a joint named 'root' that is not the root: ASF keeps that name for its root", bvh.path)
+    values = np.array(motion.values)
+    values[:, [k for k, c in enumerate(model.channels[0]) if c[0] == "t"]] *= model.cm_per_unit  # the ASF is in cm
     bones = []
     for j in range(1, model.n_joints):
         length = float(np.linalg.norm(model.offsets[j]))
@@ -81,42 +91,65 @@ def bvh_to_amc(bvh: Bvh, units: str | None = None) -> tuple[Skeleton, Motion]:
                  for p in range(model.n_joints) if any(model.parents == p)]
     stem = Path(bvh.path).stem if bvh.path else "bvh"
     skeleton = Skeleton(name=stem, version="1.10", units={"mass": "1.0", "length": "cm", "angle": "deg"},
-                        documentation=[f"fps:{bvh.fps:g}", "converted from BVH by mcz convert"],
+                        documentation=[f"fps:{bvh.fps!r}", "converted from BVH by mcz convert"],
                         root_order=tuple(c.upper() for c in model.channels[0]), bones=bones,
                         hierarchy=[(p if p != model.names[0] else "root", kids) for p, kids in hierarchy])
     names = ["root" if b == model.names[0] else b for b in motion.bones]
     frames = np.arange(1, motion.n_frames + 1)
-    return skeleton, Motion(names, list(motion.counts), np.asarray(motion.values), frames,
-                            [":FULLY-SPECIFIED", ":DEGREES"], bvh.path)
+    return skeleton, Motion(names, list(motion.counts), values, frames, [":FULLY-SPECIFIED", ":DEGREES"], bvh.path)
 
 
-def convert(inputs, output, asf=None, units: str | None = None, force: bool = False) -> dict:
+def convert(inputs, output, asf=None, units: str | None = None, force: bool = False, skip_bad: bool = False) -> dict:
     """Write every clip under `inputs` in the other format under the folder `output`, at its
-    relative path: an AMC as a .bvh file, a BVH file as .amc beside an .asf of the same stem.
-    Existing files are replaced only with `force`; return {"clips", "written": [paths]}."""
+    relative path: an AMC as a .bvh file, a BVH file as .amc beside an .asf of the same name.
+
+    Every clip is converted before a file is written: one that cannot be stops the run with
+    nothing written (with `skip_bad`, it is left out and listed). Existing files are replaced only
+    with `force`, and an input never. Returns {"clips", "written": [paths], "skipped": [...]}."""
     sources = find_clips(inputs, asf=asf)
     if not sources:
         raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, inputs)))
-    reader, out, written = ClipReader(None, units=units), Path(output), []
-    plans = []
+    out, reader, skipped = Path(output), ClipReader(None, units=units), []
+    plans = {}  # target path -> source
     for source in sources:
-        stem = Path(source.relpath).with_suffix("")
-        targets = [stem.with_suffix(".amc"), stem.with_suffix(".asf")] if is_bvh(source.amc.name) else \
-            [stem.with_suffix(".bvh")]
-        plans.append((source, targets))
-    clashing = [out / t for _, targets in plans for t in targets if (out / t).exists() and not force]
-    if clashing:
-        raise FileExistsError(None, "already exists", os.fspath(clashing[0]))
-    for source, targets in plans:
-        if is_bvh(source.amc.name):
-            skeleton, motion = bvh_to_amc(read_bvh(source.amc), units)
-            (out / targets[0]).parent.mkdir(parents=True, exist_ok=True)
-            write_amc(motion, out / targets[0])
-            write_asf(skeleton, out / targets[1])
-        else:
-            read = reader.motion(source)
-            fps = clip_frame_rate(read.stated_fps, DEFAULT_FPS)
-            (out / targets[0]).parent.mkdir(parents=True, exist_ok=True)
-            write_bvh(amc_to_bvh(read.skeleton, read.motion, fps), out / targets[0])
-        written += [t.as_posix() for t in targets]
-    return {"clips": len(sources), "written": written}
+        for target in _targets(source):
+            if target in plans:
+                raise MocapFormatError(f"two clips would be written to {target} (also {plans[target].amc})", source.amc)
+            plans[target] = source
+    inputs_read = {os.path.realpath(p) for s in sources for p in (s.amc, s.asf) if p is not None}
+    for target in plans:
+        path = out / target
+        if os.path.realpath(path) in inputs_read:
+            raise MocapFormatError("is an input: convert never writes over one (choose another -o)", path)
+        if os.path.lexists(path) and not force:
+            raise FileExistsError(None, "already exists", os.fspath(path))
+    converted = []
+    for source in progress(sources, desc="convert", unit="clip"):
+        try:
+            converted.append((source, _converted(source, reader, units)))
+        except (MocapFormatError, OSError) as exc:
+            if not skip_bad:
+                raise
+            record_skip(skipped, source, exc)
+    written = []
+    for source, files in converted:
+        for target, data in zip(_targets(source), files):
+            write_file_atomically(out / target, data)
+            written.append(target)
+    return {"clips": len(converted), "written": written, "skipped": skipped}
+
+
+def _targets(source) -> list[str]:
+    """The files a clip becomes, relative to the output folder: x.amc -> x.bvh; x.bvh -> x.amc, x.asf."""
+    stem = source.relpath[: -len(".amc")]  # .amc and .bvh alike; "take.1.amc" stays "take.1"
+    return [stem + ".amc", stem + ".asf"] if is_bvh(source.amc.name) else [stem + ".bvh"]
+
+
+def _converted(source, reader: ClipReader, units: str | None) -> list[bytes]:
+    """The bytes of the files a clip becomes (`_targets`)."""
+    if is_bvh(source.amc.name):
+        skeleton, motion = bvh_to_amc(read_bvh(source.amc), units)
+        return [format_amc(motion).encode(motion.style.encoding), format_asf(skeleton).encode("utf-8")]
+    read = reader.motion(source)
+    bvh = amc_to_bvh(read.skeleton, read.motion, clip_frame_rate(read.stated_fps, DEFAULT_FPS))
+    return [format_bvh(bvh).encode(bvh.encoding)]

@@ -16,7 +16,7 @@ from mocapzip.cli.main import main
 from mocapzip.convert import TOLERANCE_CM, amc_to_bvh, bvh_to_amc
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
-from mocapzip.formats.bvh import read_bvh
+from mocapzip.formats.bvh import read_bvh, write_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.motion.bvh_skeleton import bvh_skeleton
 from mocapzip.motion.kinematics import forward
@@ -125,3 +125,64 @@ def test_a_bvh_whose_extra_root_moves_is_refused(shared_data, tmp_path):
         bvh_to_amc(read_bvh(path))
     result = CliRunner().invoke(main, ["convert", str(path), "-o", str(tmp_path / "out")])
     assert result.exit_code == 1 and "its extra root 'joint_Root' moves" in result.stderr
+
+
+def test_a_bvh_in_millimetres_comes_out_in_cm_at_the_same_places(shared_data, tmp_path):
+    source = read_bvh(shared_data / BVH_CLIPS[0])
+    lengths = np.array([c.endswith("position") for j in source.joints for c in j.channels])
+    in_mm = replace(source, joints=[replace(j, offset=j.offset * 10,
+                                            end_site=None if j.end_site is None else j.end_site * 10)
+                                    for j in source.joints],
+                    values=np.where(lengths, source.values * 10, source.values), header=None, frames_text=None)
+    (tmp_path / "in").mkdir()
+    write_bvh(in_mm, tmp_path / "in" / "mm.bvh")
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "in"), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    names, got = reference_positions(tmp_path / "out" / "mm.asf", tmp_path / "out" / "mm.amc")
+    expected = file_positions(source)  # the cm original
+    for j, point in enumerate(bvh_skeleton(source.joints, None).model.points):
+        assert np.abs(got[:, j] - expected[point]).max() < TOLERANCE_CM, point
+
+
+def test_convert_never_writes_over_an_input_and_writes_nothing_unless_every_clip_converts(shared_data, tmp_path):
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    (folder / "10_03.bvh").write_bytes((shared_data / BVH_CLIPS[0]).read_bytes())
+    (folder / "09.asf").write_bytes((shared_data / "cmu/09/09.asf").read_bytes())
+    (folder / "10_03.amc").write_bytes((shared_data / "cmu/09/09_01.amc").read_bytes())  # what 10_03.bvh would become
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    result = CliRunner().invoke(main, ["convert", str(folder), "-o", str(folder), "-f"])
+    assert result.exit_code == 1 and "is an input: convert never writes over one" in result.stderr
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    # a clip that cannot be converted stops the run before any file is written ...
+    moving = shared_data / "bvh-bandai/dataset-1_walk-back_normal_001.bvh"  # its extra root moves
+    inputs = [str(shared_data / BVH_CLIPS[1]), str(moving)]
+    result = CliRunner().invoke(main, ["convert", *inputs, "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1 and not (tmp_path / "out").exists()
+    # ... or, with --skip-bad, is left out and named
+    result = CliRunner().invoke(main, ["convert", *inputs, "-o", str(tmp_path / "out"), "--skip-bad"])
+    assert result.exit_code == 0 and "skipped dataset-1_walk-back_normal_001.bvh" in result.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["dataset-1_bow_active_001.amc",
+                                                                    "dataset-1_bow_active_001.asf"]
+
+
+def test_names_with_dots_keep_them_and_two_clips_never_share_a_file(shared_data, tmp_path):
+    folder = tmp_path / "takes"
+    folder.mkdir()
+    for name in ("Take 02.55.01.bvh", "Take 02.55.02.bvh"):
+        (folder / name).symlink_to(shared_data / BVH_CLIPS[0])
+    result = CliRunner().invoke(main, ["convert", str(folder), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "Take 02.55.01.amc", "Take 02.55.01.asf", "Take 02.55.02.amc", "Take 02.55.02.asf"]
+    (folder / "Take 02.55.01.BVH").symlink_to(shared_data / BVH_CLIPS[1])  # would be written where .bvh's is
+    result = CliRunner().invoke(main, ["convert", str(folder), "-o", str(tmp_path / "out2")])
+    assert result.exit_code == 1 and "two clips would be written to Take 02.55.01.amc" in result.stderr
+    assert not (tmp_path / "out2").exists()
+
+
+def test_a_joint_named_root_that_is_not_the_root_is_refused(shared_data, tmp_path):
+    text = (shared_data / BVH_CLIPS[0]).read_bytes().replace(b"JOINT abdomen", b"JOINT root", 1)
+    (tmp_path / "x.bvh").write_bytes(text)
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "x.bvh"), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1 and "a joint named 'root' that is not the root" in result.stderr

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import fnmatch
 import os
-import secrets
 from collections import defaultdict
 from contextlib import closing
 from pathlib import Path, PurePosixPath
@@ -34,7 +33,7 @@ from mocapzip.formats.asf import parse_asf
 from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
-from mocapzip.formats.text import MAX_ABS_VALUE
+from mocapzip.formats.text import MAX_ABS_VALUE, write_file_atomically
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.parallel import imap
 from mocapzip.progress import progress
@@ -385,7 +384,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
         with progress(total=len(entries), desc="decompress", unit="file") as bar, \
                 closing(archive.made_files([entry for _, entry in entries], jobs)) as made:
             for (path, (kind, index)), data in zip(entries, made):
-                _write_atomically(path, data)
+                write_file_atomically(path, data)
                 frames += archive.clips[index]["frames"] if kind == "amc" else 0
                 bar.update()
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
@@ -402,30 +401,6 @@ def _made_file(entry: tuple[str, int]) -> bytes:
 
 def _checked_file(entry: tuple[str, int]) -> None:
     _SHARED["archive"].file_bytes(*entry)
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    """A new file under a random name, created exclusively (never through a link planted there),
-    then renamed over `path`: an interrupted run never leaves half an AMC behind."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".mcz-{secrets.token_hex(8)}.tmp")
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
-    except OSError as exc:
-        raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
-    try:
-        try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(fd, view):]
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError) and exc.errno and exc.filename is None:  # e.g. a full disk: name the file
-            raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
-        raise
 
 
 def info(archive_path) -> dict:

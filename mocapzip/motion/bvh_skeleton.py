@@ -38,6 +38,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.motion.rotations import euler_matrix
 from mocapzip.motion.skeleton import SkeletonModel
 
+_LOSSY_KEEPS = "lossy coding keeps only the root's position channels and the rotations: use --lossless"
 FIXED_TOLERANCE_CM = 1e-4  # how far a fixed channel may stray from its value (Bandai: 9e-6 cm)
 
 
@@ -86,8 +87,9 @@ class BvhSkeleton:
         return Motion(list(self.bones), list(self.counts), bvh.values[:, self.coded], frames, [], bvh.path,
                       AmcStyle(notation=notation, digits=digits, encoding=bvh.encoding))
 
-    def check_fixed(self, bvh: Bvh) -> None:
-        """MocapFormatError if a fixed channel strays from its value: lossy coding would lose it."""
+    def check_fixed(self, bvh: Bvh, why: str = _LOSSY_KEEPS) -> None:
+        """MocapFormatError if a fixed channel strays from its value (`why` that matters): the
+        model would lose it."""
         if not len(self.fixed):
             return
         stray = np.abs(bvh.values[:, self.fixed] - self.fixed_values).max(axis=0) * self.cm_per_unit
@@ -95,8 +97,8 @@ class BvhSkeleton:
         if stray[worst] > FIXED_TOLERANCE_CM:
             joint, channel = _columns(self.joints)[self.fixed[worst]]
             raise MocapFormatError(
-                f"joint '{self.joints[joint].name}' {channel} moves {stray[worst]:.3g} cm from its OFFSET; lossy "
-                "coding keeps only the root's position channels and the rotations: use --lossless", bvh.path)
+                f"joint '{self.joints[joint].name}' {channel} moves {stray[worst]:.3g} cm from its OFFSET; {why}",
+                bvh.path)
 
     def above_values(self, bvh: Bvh) -> np.ndarray | None:
         """The extra root's channels of a clip; None where there are none or all are 0."""
