@@ -122,10 +122,7 @@ def bvh_skeleton(joints: list[BvhJoint], units: str | None, path: str | None = N
     if sum(j.parent < 0 for j in joints) != 1:
         raise MocapFormatError(f"{sum(j.parent < 0 for j in joints)} ROOT joints; mcz takes one skeleton per file",
                                path)
-    units = units or infer_units(joints)
-    if units is None:
-        raise MocapFormatError("cannot tell the unit of its OFFSETs (not a human's size in cm, mm or m): "
-                               f"give it (--units {'|'.join(UNITS_CM)})", path)
+    units = _known_units(joints, units, path)
     cm_per_unit = UNITS_CM[units]
     columns = _columns(joints)
     first_column = np.cumsum([0] + [len(j.channels) for j in joints])
@@ -232,10 +229,7 @@ def file_positions(bvh: Bvh, units: str | None = None) -> np.ndarray:
     """(frames, points, 3) positions in cm of every joint and End Site (`point_names`) of a BVH
     clip, as the file's channels put them: any channel may move (unlike the codec's model, whose
     bones other than the root keep their OFFSET). `units`: of its lengths; None: `infer_units`."""
-    units = units or infer_units(bvh.joints)
-    if units is None:
-        raise MocapFormatError("cannot tell the unit of its OFFSETs (not a human's size in cm, mm or m): "
-                               f"give it (--units {'|'.join(UNITS_CM)})", bvh.path)
+    units = _known_units(bvh.joints, units, bvh.path)
     frames, column = bvh.n_frames, 0
     turns: list[np.ndarray] = []  # each joint's world rotation, row vectors (F, 3, 3)
     places: list[np.ndarray] = []  # each joint's position (F, 3)
@@ -259,6 +253,15 @@ def file_positions(bvh: Bvh, units: str | None = None) -> np.ndarray:
         if joint.end_site is not None:
             out.append(offset + np.einsum("i,fij->fj", np.asarray(joint.end_site, dtype=np.float64), turns[-1]))
     return np.stack(out, axis=1) * UNITS_CM[units]
+
+
+def _known_units(joints: list[BvhJoint], units: str | None, path: str | None) -> str:
+    """`units`, or those `infer_units` finds; MocapFormatError if it finds none."""
+    units = units or infer_units(joints)
+    if units is None:
+        raise MocapFormatError("cannot tell the unit of its OFFSETs (not a human's size in cm, mm or m): "
+                               f"give it (--units {'|'.join(UNITS_CM)})", path)
+    return units
 
 
 def infer_units(joints: list[BvhJoint]) -> str | None:
