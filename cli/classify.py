@@ -43,13 +43,12 @@ class _ListOptions(click.Command):
 def load_poses(inputs, representation: str, asf=None) -> tuple[list, dict[str, "object"]]:
     """The clips under `inputs` in `representation`, and their classification poses by stored path."""
     from mocapzip.inputs.clip import load_clips
-    from mocapzip.formats.errors import MocapFormatError
-    from mocapzip.inputs.discover import find_clips
+    from mocapzip.inputs.discover import find_clips, no_clips
     from mocapzip.classes.ppca import classification_poses
 
     sources = find_clips(list(inputs), asf=asf)
     if not sources:
-        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(str, inputs)))
+        raise no_clips(inputs)
     clips = load_clips(sources, representation)
     return sources, {c.source.relpath: classification_poses(c) for c in clips}
 

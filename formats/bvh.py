@@ -113,7 +113,12 @@ class Bvh:
 
     def columns(self) -> list[tuple[int, str]]:
         """(joint index, channel name) of each column of `values`."""
-        return [(j, channel) for j, joint in enumerate(self.joints) for channel in joint.channels]
+        return joint_columns(self.joints)
+
+
+def joint_columns(joints: list[BvhJoint]) -> list[tuple[int, str]]:
+    """(joint index, channel name) of each column of the frame lines of a hierarchy's clips."""
+    return [(j, channel) for j, joint in enumerate(joints) for channel in joint.channels]
 
 
 def read_bvh(path: str | os.PathLike) -> Bvh:
@@ -184,20 +189,36 @@ def motion_lines_problem(text: str, frames: int) -> str | None:
     lines = _lines_with_ends(text, 4)
     if len(lines) != 3 or not all(line.endswith(("\n", "\r")) for line in lines):
         return "not three lines, each with its line end"
-    words = [line.strip() for line in lines]
-    if words[0].upper() != "MOTION" or not words[1].lower().startswith("frames:") \
-            or not words[2].lower().startswith("frame time:"):
+    if lines[0].strip().upper() != "MOTION":
         return "not the lines MOTION, Frames: and Frame Time:"
-    count = words[1][len("frames:"):].strip()
-    if not (count.isascii() and count.isdigit()) or int(count) != frames:
-        return f"Frames: is not {frames}"
     try:
-        frame_time = number(words[2][len("frame time:"):].strip(), None, None, what="Frame Time")
-    except MocapFormatError:
-        return "Frame Time: is no number"
+        count, _ = _motion_numbers(lines[1:], 2, None)
+    except MocapFormatError as exc:
+        return exc.message
+    return None if count == frames else f"Frames: is not {frames}"
+
+
+def _motion_numbers(lines: list[str], first_line: int, path: str | None) -> tuple[int, float]:
+    """(frames, frame time) of the lines `Frames:` and `Frame Time:` that follow MOTION (`lines`,
+    the first of them line `first_line`); MocapFormatError naming the line at fault."""
+    words = []
+    for offset, key in enumerate(("frames:", "frame time:")):
+        if offset >= len(lines):
+            raise MocapFormatError(f"MOTION needs a '{key.capitalize()}' line", path, first_line + offset - 1)
+        line = lines[offset].strip()
+        if not line.lower().startswith(key):
+            raise MocapFormatError(f"expected '{key.capitalize()} ...', got {line[:40]!r}", path, first_line + offset)
+        words.append(line[len(key):].strip())
+    count, seconds = words
+    if not (count.isascii() and count.isdigit()) or int(count) > MAX_FRAMES_PER_CLIP:
+        raise MocapFormatError(f"Frames: must be a count up to {MAX_FRAMES_PER_CLIP:,}, got {count[:30]!r}", path,
+                               first_line)
+    frame_time = number(seconds, path, first_line + 1, what="Frame Time")
     if not 1 / MAX_FRAME_RATE <= frame_time <= 1 / MIN_FRAME_RATE:
-        return f"Frame Time: is not a rate of {MIN_FRAME_RATE:g} to {MAX_FRAME_RATE:,.0f} fps"
-    return None
+        raise MocapFormatError(f"Frame Time must be from {1 / MAX_FRAME_RATE:g} to {1 / MIN_FRAME_RATE:g} seconds "
+                               f"(a rate of {MIN_FRAME_RATE:g} to {MAX_FRAME_RATE:,.0f} fps), got {seconds[:30]!r}",
+                               path, first_line + 1)
+    return int(count), frame_time
 
 
 def parse_hierarchy(text: str, path: str | None = None) -> list[BvhJoint]:
@@ -358,25 +379,8 @@ class _Parser:
     def motion_header(self) -> tuple[int, float, int, int]:
         """(frames, frame time, offset of the first frame in the text, its line)."""
         lines = _lines_with_ends(self.text, self.motion_line + 2)
-        index = self.motion_line  # the 1-based MOTION line, so `lines[index]` is the one after it
-        fields = {}
-        for key in ("frames:", "frame time:"):
-            if index >= len(lines):
-                raise self.fail(f"MOTION needs a '{key.capitalize()}' line", index)
-            line = lines[index].strip()
-            if not line.lower().startswith(key):
-                raise self.fail(f"expected '{key.capitalize()} ...', got {line[:40]!r}", index + 1)
-            fields[key] = (line[len(key):].strip(), index + 1)
-            index += 1
-        word, line = fields["frames:"]
-        if not (word.isascii() and word.isdigit()) or int(word) > MAX_FRAMES_PER_CLIP:
-            raise self.fail(f"Frames: must be a count up to {MAX_FRAMES_PER_CLIP:,}, got {word[:30]!r}", line)
-        word, time_line = fields["frame time:"]
-        frame_time = number(word, self.path, time_line, what="Frame Time")
-        if not 1 / MAX_FRAME_RATE <= frame_time <= 1 / MIN_FRAME_RATE:
-            raise self.fail(f"Frame Time must be from {1 / MAX_FRAME_RATE:g} to {1 / MIN_FRAME_RATE:g} seconds "
-                            f"(a rate of {MIN_FRAME_RATE:g} to {MAX_FRAME_RATE:,.0f} fps), got {word[:30]!r}", time_line)
-        return int(fields["frames:"][0]), frame_time, sum(len(l) for l in lines[:index]), index + 1
+        frames, frame_time = _motion_numbers(lines[self.motion_line :], self.motion_line + 1, self.path)
+        return frames, frame_time, sum(len(line) for line in lines), self.motion_line + 3
 
 
 def _frame_values(frames: bytes, frames_text: str, n_frames: int, width: int, path: str | None,

@@ -34,7 +34,7 @@ from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, read_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import write_file_atomically
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
-from mocapzip.inputs.discover import find_clips, is_bvh, record_skip
+from mocapzip.inputs.discover import find_clips, is_bvh, no_clips, record_skip
 from mocapzip.motion.bvh_skeleton import bvh_skeleton
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.rotations import euler_angles
@@ -108,7 +108,7 @@ def convert(inputs, output, asf=None, units: str | None = None, force: bool = Fa
     with `force`, and an input never. Returns {"clips", "written": [paths], "skipped": [...]}."""
     sources = find_clips(inputs, asf=asf)
     if not sources:
-        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, inputs)))
+        raise no_clips(inputs)
     out, reader, skipped = Path(output), ClipReader(None, units=units), []
     plans = {}  # target path -> source
     for source in sources:

@@ -39,7 +39,7 @@ from mocapzip.parallel import imap
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
-from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton
+from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout
 
 
 class Archive:
@@ -193,8 +193,7 @@ class Archive:
         """A BVH clip's file: its hierarchy, MOTION lines and frames (docs/format.md, "Decoding a BVH clip")."""
         row, k = self.clips[index], self.clips[index]["skeleton"]
         if self.settings.lossless:  # the values as the file had them: no model needed
-            joints = self.bvh_joints(k)
-            layout = ([j.name for j in joints if j.channels], [len(j.channels) for j in joints if j.channels])
+            layout = file_layout(self.bvh_joints(k))
         else:
             skeleton = self.bvh_skeleton(k)
             layout = (list(skeleton.bones), list(skeleton.counts))

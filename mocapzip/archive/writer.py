@@ -39,7 +39,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveWriter
 from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
-from mocapzip.inputs.discover import ClipSource, find_clips, record_skip
+from mocapzip.inputs.discover import ClipSource, find_clips, no_clips, record_skip
 from mocapzip.defaults import UNITS_CM
 from mocapzip.motion.bvh_skeleton import BvhSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
@@ -80,7 +80,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     skipped = [] if skip_bad else None  # {"path", "error"} per clip left out
     sources = find_clips(inputs, asf=asf, skipped=skipped)
     if not sources and not skipped:
-        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, inputs)))
+        raise no_clips(inputs)
     _refuse_input_as_output(output, [p for s in sources for p in (s.amc, s.asf)]
                             + [p for p in (asf, settings.classes) if p is not None and os.path.isfile(p)])
     keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)

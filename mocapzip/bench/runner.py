@@ -66,7 +66,7 @@ from mocapzip.classes.by_name import read_class_table
 from mocapzip.cli.choices import contact_error_cm, max_error_cm
 from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.inputs.discover import ClipSource, find_clips
+from mocapzip.inputs.discover import ClipSource, find_clips, no_clips
 from mocapzip.progress import progress
 
 CODECS = ("mcz", "hou", "hou-shared", "xz", "zstd")
@@ -138,7 +138,7 @@ def run_bench(options: BenchOptions) -> dict:
         raise MocapFormatError(f"unknown codec {unknown[0]!r}; choose from {', '.join(CODECS)}")
     sources = find_clips(options.inputs, asf=options.asf)
     if not sources:
-        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, options.inputs)))
+        raise no_clips(options.inputs)
     clips, reader = _load_clips(sources, options)
     runs = []
     with tempfile.TemporaryDirectory(prefix="mcz-bench-") as tmp:

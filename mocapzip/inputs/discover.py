@@ -124,6 +124,11 @@ def _amcs_under(top: Path, skipped: list | None) -> list[ClipSource]:
     return found
 
 
+def no_clips(inputs) -> MocapFormatError:
+    """The error for inputs that hold no clip."""
+    return MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, inputs)))
+
+
 def record_skip(skipped: list, clip: ClipSource, exc: Exception) -> None:
     """Add {"path": stored path, "error": one line} to `skipped` and say so in a warning."""
     _record(skipped, clip.relpath, exc)

@@ -7,9 +7,8 @@ import os
 
 from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.formats.amc import read_amc
-from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
-from mocapzip.inputs.discover import find_clips, is_bvh
+from mocapzip.inputs.discover import find_clips, is_bvh, no_clips
 from mocapzip.inputs.glitches import find_glitches
 from mocapzip.motion.kinematics import forward
 from mocapzip.progress import progress
@@ -22,7 +21,7 @@ def inspect_paths(paths, asf=None, fps: float | None = None, check: bool = False
     they cannot be inferred (`ClipReader`). Raises MocapFormatError on bad input."""
     clips = find_clips(paths, asf=asf, require_skeleton=False)
     if not clips:
-        raise MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, paths)))
+        raise no_clips(paths)
     reader = ClipReader(None, units=units)
     rows = []
     for clip in progress(clips, desc="inspect", unit="clip"):

@@ -33,7 +33,7 @@ import numpy as np
 
 from mocapzip.defaults import UNITS_CM
 from mocapzip.formats.amc import AmcStyle, Motion
-from mocapzip.formats.bvh import Bvh, BvhJoint
+from mocapzip.formats.bvh import Bvh, BvhJoint, joint_columns
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.motion.rotations import euler_matrix
 from mocapzip.motion.skeleton import SkeletonModel
@@ -76,9 +76,8 @@ class BvhSkeleton:
         coded columns in model order, after checking that the fixed ones stand still."""
         frames = np.arange(1, bvh.n_frames + 1)
         if lossless:
-            named = [(j.name, len(j.channels)) for j in bvh.joints if j.channels]
-            return Motion([n for n, _ in named], [c for _, c in named], np.asarray(bvh.values), frames, [],
-                          bvh.path, AmcStyle(encoding=bvh.encoding))
+            bones, counts = file_layout(bvh.joints)
+            return Motion(bones, counts, np.asarray(bvh.values), frames, [], bvh.path, AmcStyle(encoding=bvh.encoding))
         if bvh.values.shape[1] != self.width:
             raise MocapFormatError(f"{bvh.values.shape[1]} channels, the skeleton has {self.width}", bvh.path)
         self.check_fixed(bvh)
@@ -95,7 +94,7 @@ class BvhSkeleton:
         stray = np.abs(bvh.values[:, self.fixed] - self.fixed_values).max(axis=0) * self.cm_per_unit
         worst = int(np.argmax(stray))
         if stray[worst] > FIXED_TOLERANCE_CM:
-            joint, channel = _columns(self.joints)[self.fixed[worst]]
+            joint, channel = joint_columns(self.joints)[self.fixed[worst]]
             raise MocapFormatError(
                 f"joint '{self.joints[joint].name}' {channel} moves {stray[worst]:.3g} cm from its OFFSET; {why}",
                 bvh.path)
@@ -124,7 +123,7 @@ def bvh_skeleton(joints: list[BvhJoint], units: str | None, path: str | None = N
                                path)
     units = _known_units(joints, units, path)
     cm_per_unit = UNITS_CM[units]
-    columns = _columns(joints)
+    columns = joint_columns(joints)
     first_column = np.cumsum([0] + [len(j.channels) for j in joints])
     children: dict[int, list[int]] = {}
     for j, joint in enumerate(joints):
@@ -210,6 +209,13 @@ def bvh_skeleton(joints: list[BvhJoint], units: str | None, path: str | None = N
     return BvhSkeleton(joints, units, model, tuple(names[j] for j in with_channels),
                        tuple(len(channels[j]) for j in with_channels), np.array(coded, dtype=np.int64), above,
                        fixed, fixed_values, path)
+
+
+def file_layout(joints: list[BvhJoint]) -> tuple[list[str], list[int]]:
+    """(joints with channels, their channel counts): the layout of a clip's frame lines as
+    lossless coding keeps them (a lossy clip's is `BvhSkeleton.bones` and `counts`)."""
+    with_channels = [joint for joint in joints if joint.channels]
+    return [joint.name for joint in with_channels], [len(joint.channels) for joint in with_channels]
 
 
 def unmodelled(joints: list[BvhJoint], units: str | None, path: str | None = None) -> BvhSkeleton:
@@ -307,5 +313,3 @@ def _positions(joint: BvhJoint) -> list[str]:
     return [c for c in joint.channels if c.endswith("position")]
 
 
-def _columns(joints: list[BvhJoint]) -> list[tuple[int, str]]:
-    return [(j, channel) for j, joint in enumerate(joints) for channel in joint.channels]
