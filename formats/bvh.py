@@ -149,11 +149,11 @@ def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
 
 def read_hierarchy(path: str | os.PathLike) -> tuple[str, str]:
     """(hierarchy text, encoding) of the BVH file at `path` (see `split_header`), reading no
-    further than its MOTION line; MocapFormatError if it has none. Only a header can hold
-    letters, so its encoding is the file's."""
+    further than its MOTION line, nor past what a hierarchy may take (MAX_HIERARCHY_CHARS);
+    MocapFormatError if it has none. Only a header can hold letters, so its encoding is the file's."""
     head = bytearray()
     with open_regular_file(path) as file:
-        while True:
+        while len(head) <= 4 * MAX_HIERARCHY_CHARS:  # 4: the most bytes a UTF-8 character takes
             chunk = file.read(1 << 16)
             start = max(0, len(head) - 64)  # a MOTION line may begin in the previous chunk
             head += chunk
@@ -162,7 +162,8 @@ def read_hierarchy(path: str | os.PathLike) -> tuple[str, str]:
                 break
     head = bytes(head)
     if motion is None:
-        raise MocapFormatError("no MOTION line: not a BVH file", os.fspath(path))
+        where = f" in its first {len(head):,} bytes" if chunk else ""  # stopped short of the end
+        raise MocapFormatError(f"no MOTION line{where}: not a BVH file", os.fspath(path))
     hierarchy = check_text(head[: motion.start()], os.fspath(path)) if motion.start() else b""
     encoding = detect_encoding(hierarchy)
     return hierarchy.decode(encoding), encoding

@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocapzip.formats.bvh import Bvh, BvhStyle, format_bvh, parse_bvh, read_bvh
+from mocapzip.formats.bvh import (MAX_HIERARCHY_CHARS, Bvh, BvhStyle, format_bvh, parse_bvh, read_bvh,
+                                  read_hierarchy)
 from mocapzip.formats.errors import MocapFormatError
 
 
@@ -123,3 +124,13 @@ def test_line_ends_and_styles_a_first_frame_does_not_show(shared_data):
     mixed = parse_bvh(head + b"Frame Time:\t0.00833333\r\n" + b"\n".join(lines), "mixed.bvh")
     assert mixed.style.number == "repr"  # as the other frames: nothing written later loses digits
     assert mixed.style.format(mixed.values[1:2]).encode() == lines[1] + b"\n"
+
+
+def test_the_hierarchy_of_a_file_is_read_no_further_than_a_hierarchy_may_reach(shared_data, tmp_path):
+    head = (shared_data / "cmu-bvh/10/10_03.bvh").read_bytes().split(b"MOTION")[0]
+    assert read_hierarchy(shared_data / "cmu-bvh/10/10_03.bvh")[0].encode() == head
+    path = tmp_path / "endless.bvh"
+    path.write_bytes(head + b"#" * (4 * MAX_HIERARCHY_CHARS + (1 << 20)) + b"\nMOTION\n")
+    with pytest.raises(MocapFormatError, match=r"endless\.bvh: no MOTION line in its first [0-9,]+ bytes"):
+        read_hierarchy(path)
+
