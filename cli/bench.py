@@ -73,11 +73,12 @@ def _codecs(values):
                    f"{MAX_TO_MEAN:g} x each -e; 'none': no bound.")
 @click.option("--contact-error", "contact_error", metavar="CM|none", callback=max_error_value, default=None,
               help="mcz's bound on planted foot joints, as compress takes it (default: as compress).")
+@click.option("--plant-feet", is_flag=True, help="mcz holds the source's planted feet still, as compress --plant-feet.")
 @click.option("--per-clip", is_flag=True, help="Also print one line per clip.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no table (files are still written).")
 @reports_errors
 def bench(inputs, errors, representations, transforms, wavelet, classes, splits, codecs, groups, asf, units, jobs,
-          json_path, csv_path, plot_path, max_error, contact_error, per_clip, quiet):
+          json_path, csv_path, plot_path, max_error, contact_error, plant_feet, per_clip, quiet):
     """Compress and decompress the clips under INPUTS and report size, ratio, error and speed,
     per clip, per motion class and overall, next to xz -9, zstd -19 and Hou et al. 2015.
 
@@ -108,7 +109,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
         transforms=list(transforms) or ["dct"], classes=list(classes) or ["pooled"], splits=_splits(splits),
         codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error,
-        contact_error=contact_error, units=units)
+        contact_error=contact_error, plant_feet=plant_feet, units=units)
     report = bench_module.run_bench(options)
     if json_path:
         _write(json_path, json.dumps(report, indent=1) + "\n")

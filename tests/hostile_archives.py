@@ -36,7 +36,9 @@ GOLDEN = Path(__file__).parent / "golden"
 BASES = {"lossy": GOLDEN / "lossy_v7.mcz", "lossless": GOLDEN / "lossless_v7.mcz",
          # format 8's: the same two clips, then a BVH one (clip 2, skeleton 0: Bandai's walk-back_normal_001,
          # 31 frames, whose extra root moves, so it has a stream extra_root/00002)
-         "lossy_bvh": GOLDEN / "lossy_v8.mcz", "lossless_bvh": GOLDEN / "lossless_v8.mcz"}
+         "lossy_bvh": GOLDEN / "lossy_v8.mcz", "lossless_bvh": GOLDEN / "lossless_v8.mcz",
+         # format 9's: the same three clips; 64_01 (448 frames, 4 foot joints) has one stance, in plant/00001
+         "lossy_plant": GOLDEN / "lossy_v9.mcz"}
 BASE_PATCHED = 45  # the lossy base's clip 0 (09_01): its row's patched_frames
 MEMORY_LIMIT = 1 << 30  # address space of each child: far below what any bomb here would take
 COMMANDS = (("test", "-q"), ("info", "--json"), ("decompress", "-q", "-o"))
@@ -116,6 +118,11 @@ def _without_root_track(meta: dict, streams: dict) -> None:
     priors = Priors.decode(entropy.decode_bytes(streams["priors"]))
     coded = CodedClip.from_payload(streams["clip/00000"], "primed", priors=priors)
     streams["clip/00000"] = CodedClip(coded.pose_step, coded.pose_ints, coded.root_step, None).payload("primed", priors)
+
+
+def _stances(*stored: tuple[int, int, int]) -> Callable[[], bytes]:
+    """A plant stream of stances stored as (foot, gap, frames)."""
+    return lambda: encode_matrices([np.array(stored, np.int64).reshape(-1, 3)])
 
 
 def _patches(frames: list[int], levels: list[int], value: int) -> Callable[[], bytes]:
@@ -256,6 +263,18 @@ def cases(watched: Path) -> list[Case]:
                   decoded=True))
     c.append(Case("patch_moves_values_past_1e9", "lossy", _stream("patch/00000", _patches([3, 4], [0, 0], 2**61)),
                   "clip/00000", decoded=True))
+    # 09_01 (clip 0: 148 frames, 4 foot joints) given one stance, whose stream is at fault
+    one_stance = _set("clips.0.planted_stances", 1)
+    c.append(Case("plant_stream_3_bytes", "lossy_plant", _both(one_stance, _stream("plant/00000", b"abc")),
+                  "plant/00000", decoded=True))
+    c.append(Case("plant_stream_missing", "lossy_plant", one_stance, "plant/00000: stream missing"))
+    c.append(Case("stances_claimed_beyond_the_clip", "lossy_plant", _set("clips.1.planted_stances", 449),
+                  "meta: clips[1].planted_stances"))
+    for label, stance in (("stance_past_the_end", (0, 140, 20)), ("stance_of_an_unknown_foot", (9, 0, 5)),
+                          ("stance_of_no_frames", (0, 3, 0))):
+        c.append(Case(label, "lossy_plant", _both(one_stance, _stream("plant/00000", _stances(stance))),
+                      "plant/00000", decoded=True))
+    c.append(Case("stances_in_a_lossless_archive", "lossless", _set("clips.0.planted_stances", 1), "meta: clips[0]"))
     c.append(Case("patches_in_a_lossless_archive", "lossless", _set("clips.0.patched_frames", 1), "meta: clips[0]"))
     c.append(Case("repaired_range_of_two_numbers", "lossy", _set("clips.1.repaired.0", [1, 448]),
                   "meta: clips[1].repaired[0]"))

@@ -9,7 +9,8 @@ every joint at 3 cm (`--max-error`), so it holds frame patches; from version 6 i
 planted feet at 2 cm (`--contact-error`) and repairs glitches (64_01's left thumb is beyond its
 ASF limits), so its rows list repaired ranges. From version 8 a BVH clip joins them: Bandai's
 dataset-1_walk-back_normal_001 (31 frames), whose extra root moves, so the lossy file holds an
-extra_root stream.
+extra_root stream. From version 9 the lossy file holds planted feet still (`--plant-feet`), so
+its rows list stances and it holds plant streams.
 """
 
 import sys
@@ -26,7 +27,7 @@ INPUTS = [DATA / "cmu" / "09" / "09_01.amc", DATA / "cmu" / "64" / "64_01.amc",
 if __name__ == "__main__":
     # The lossy file uses the newest clip coder even where "auto" would not (two clips are too
     # few for priors to pay), so that the coder is what the golden file pins down.
-    lossy = Settings(error_cm=1.0, max_error_cm=3.0, contact_error_cm=2.0, repair_glitches=True,
+    lossy = Settings(error_cm=1.0, max_error_cm=3.0, contact_error_cm=2.0, repair_glitches=True, plant_feet=True,
                      coefficient_coder="primed")
     for name, settings in (("lossy", lossy), ("lossless", Settings(lossless=True))):
         path = GOLDEN / f"{name}_v{FORMAT_VERSION}.mcz"

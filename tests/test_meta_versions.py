@@ -16,7 +16,8 @@ from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError
 GOLDEN = Path(__file__).parent / "golden"
 EXAMPLES = {"coefficient_coder": "context", "axes_from_positions": True, "twist_flips": {"lthumb": [0, 1]},
             "max_error_cm": 10.0, "p99_error_cm": 1.0, "patched_frames": 1, "contact_error_cm": 2.0,
-            "repair_glitches": True, "repaired": [[1, 1, 1.0]], "fps_from_files": False, "fps": 200.0}
+            "repair_glitches": True, "repaired": [[1, 1, 1.0]], "fps_from_files": False, "fps": 200.0,
+            "plant_feet": True, "planted_stances": 1}
 
 
 def with_field(meta: dict, part: str, name: str, accepted: bool) -> dict:
@@ -51,8 +52,8 @@ def test_each_golden_archive_meets_the_rules_of_its_version(kind, version):
 def test_a_field_is_refused_before_the_version_that_added_it(version, added, part, name):
     with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
         meta, names = with_field(archive.meta, part, name, version >= added), archive._reader.names()
-    if name == "patched_frames":
-        names = [*names, "patch/00000"]
+    if name in ("patched_frames", "planted_stances"):
+        names = [*names, "patch/00000" if name == "patched_frames" else "plant/00000"]
     if version < added:
         field = f"settings.{name}" if part == "settings" else f"{part}[0].{name}"
         with pytest.raises(ArchiveError, match=re.escape(f"meta: {field}: format {added} on")):

@@ -46,6 +46,7 @@ FRESH = {
     "segmented-auto-classes": ["--segment", "-c", "auto:2", "-e", "1"],
     "max-error": ["-e", "1", "--max-error", "3"],
     "segmented-max-error": ["--segment", "-e", "1", "--max-error", "4"],
+    "plant-feet": ["-e", "1", "--plant-feet"],
 }
 # 02_05 is a boxing take that --segment cuts in four
 FRESH_CLIPS = [("09", "09.asf"), ("09", "09_01.amc"), ("09", "09_02.amc"), ("07", "07.asf"), ("07", "07_01.amc"),
@@ -54,7 +55,8 @@ FRESH_CLIPS = [("09", "09.asf"), ("09", "09_01.amc"), ("09", "09_02.amc"), ("07"
 # root's position channels, several children and End Sites) that --segment cuts in two, and two
 # Bandai takes (6 channels on every joint under an extra root, which moves in run_normal only)
 FRESH_BVH = {f"bvh-{label}": FRESH[label] for label in ("channels-identity", "positions-dwt", "aligned-lossless",
-                                                        "scaled-dct", "normalised-dwt", "segmented-max-error")}
+                                                        "scaled-dct", "normalised-dwt", "segmented-max-error",
+                                                        "plant-feet")}
 FRESH_BVH_CLIPS = ["cmu-bvh/10/10_01.bvh", "bvh-bandai/dataset-1_run_normal_001.bvh",
                    "bvh-bandai/dataset-1_bow_active_001.bvh"]
 
@@ -100,6 +102,8 @@ def fresh_archives(tmp_path_factory, shared_data):
     for label in ("max-error", "segmented-max-error"):
         with Archive(archives[label]) as archive:
             assert any("patched_frames" in row for row in archive.clips), label
+    with Archive(archives["plant-feet"]) as archive:  # 07_01, a walk, has many stances
+        assert sum(row.get("planted_stances", 0) for row in archive.clips) >= 10
     return archives
 
 
@@ -114,6 +118,8 @@ def fresh_bvh_archives(tmp_path_factory, shared_data):
         assert any("segments" in row for row in archive.clips)
         assert any("patched_frames" in row for row in archive.clips)
         assert sorted(row["path"] for row in archive.clips if row["bvh"].get("extra_root")) == [FRESH_BVH_CLIPS[1]]
+    with Archive(archives["bvh-plant-feet"]) as archive:  # the lock on BVH models: link joints, identity axes
+        assert sum(row.get("planted_stances", 0) for row in archive.clips) >= 2
     return archives
 
 

@@ -90,6 +90,7 @@ _CLIP = _record(
         "twist_flips": {"type": "object", "additionalProperties": {"type": "array", "items": _COUNT}},
         "p99_error_cm": _ERROR,
         "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
+        "planted_stances": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},  # format 9 on
         "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
         "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
         "fps": {"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": MAX_FRAME_RATE},  # format 7 on
@@ -123,6 +124,7 @@ _SETTINGS = _record(
         "max_error_cm": _POSITIVE,
         "contact_error_cm": _POSITIVE,  # format 6 on
         "repair_glitches": {"type": "boolean"},  # format 6 on
+        "plant_feet": {"type": "boolean"},  # format 9 on
         "fps_from_files": {"type": "boolean"},  # format 7 on; absent: true
         "coefficient_coder": {"enum": [*stage_ids("coefficient coder"), "auto"]},
         "axes_from_positions": {"type": "boolean"},
@@ -161,6 +163,7 @@ ADDED_IN = {
     6: (("settings", "contact_error_cm"), ("settings", "repair_glitches"), ("clips", "repaired")),
     7: (("settings", "fps_from_files"), ("clips", "fps")),
     8: (("skeletons", "format"), ("clips", "bvh")),
+    9: (("settings", "plant_feet"), ("clips", "planted_stances")),
 }
 
 
@@ -267,13 +270,17 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
         if len(edges) % 2 or any(b <= a for a, b in zip(edges, edges[1:])) or (edges and edges[-1] > row["frames"]):
             raise fail(f"{where}.twist_flips", f"ranges of {bone[:40]!r} are not increasing pairs within the clip")
     if settings["lossless"]:
-        if "segments" in row or "twist_flips" in row or "patched_frames" in row or "extra_root" in row.get("bvh", {}):
-            raise fail(where, "a lossless clip has no segments, twist flips, patches or extra root stream")
+        if ("segments" in row or "twist_flips" in row or "patched_frames" in row or "planted_stances" in row
+                or "extra_root" in row.get("bvh", {})):
+            raise fail(where, "a lossless clip has no segments, twist flips, patches, stances or extra root stream")
         return [f"clip/{i:05d}"]
     if row.get("patched_frames", 0) > row["frames"]:
         raise fail(f"{where}.patched_frames", f"{row['patched_frames']} patched frames in a clip of {row['frames']}")
     patches = [f"patch/{i:05d}"] if "patched_frames" in row else []
     patches += [f"extra_root/{i:05d}"] if "extra_root" in row.get("bvh", {}) else []
+    if row.get("planted_stances", 0) > row["frames"]:
+        raise fail(f"{where}.planted_stances", f"{row['planted_stances']} stances in a clip of {row['frames']} frames")
+    patches += [f"plant/{i:05d}"] if "planted_stances" in row else []
     if "segments" not in row:
         if row["class"] >= n_classes:
             raise fail(f"{where}.class", f"index {row['class']} but the archive has {n_classes} classes")

@@ -26,6 +26,7 @@ from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors, check_matrix_shape
 from mocapzip.codec.entropy.zstd import decode_bytes, unpack_blobs
+from mocapzip.codec.foot_lock import Stances, hold
 from mocapzip.codec.lossless import decode_channels
 from mocapzip.codec.patches import FramePatches, channel_steps
 from mocapzip.formats.amc import AmcStyle, Motion, format_amc
@@ -34,6 +35,7 @@ from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
 from mocapzip.formats.text import MAX_ABS_VALUE, write_file_atomically
+from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.parallel import imap
 from mocapzip.progress import progress
@@ -160,7 +162,13 @@ class Archive:
                 else:
                     poses, root = self._reconstruct(name, row["class"], row["frames"])
                 twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
-                values = self._decode_tail(row["skeleton"], layout).decode(poses, root, twist)
+                tail = self._decode_tail(row["skeleton"], layout)
+                values = tail.decode(poses, root, twist)
+                if "planted_stances" in row:
+                    name = f"plant/{index:05d}"
+                    stances = Stances.from_payload(self._reader.read(name), row["planted_stances"], row["frames"],
+                                                   len(foot_joints(model)))
+                    hold(values, stances, model, tail)
                 if "patched_frames" in row:
                     name = f"patch/{index:05d}"
                     patches = FramePatches.from_payload(self._reader.read(name), row["frames"], layout.width,
@@ -315,7 +323,7 @@ class Archive:
     def verify_checksums(self) -> None:
         """Check every stream's CRC32 without decoding: cheap, so `info` and `decompress` run it first."""
         paths = {f"{kind}/{i:05d}": row["path"] for i, row in enumerate(self.clips)
-                 for kind in ("clip", "patch", "extra_root")}
+                 for kind in ("clip", "patch", "plant", "extra_root")}
         for name in self._reader.names():
             try:
                 self._reader.read(name)

@@ -21,6 +21,7 @@ class Settings:
     max_error_cm: float | None = None  # bound on every joint of every frame (frame patches); None: no bound
     contact_error_cm: float | None = None  # bound on planted foot joints (motion.contacts; frame patches); None: none
     repair_glitches: bool = False  # joints a source glitch throws off are left to the decoder, not held to the bounds
+    plant_feet: bool = False  # the decoder holds the source's planted feet still (codec.foot_lock; format 9 on)
     representation: str = "aligned"
     transform: dict = field(default_factory=lambda: {"id": "dct"})
     classes: str = "pooled"
@@ -72,6 +73,9 @@ def checked(settings: Settings) -> Settings:
     if settings.coefficient_coder not in written_coders():
         raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
                             f"{FORMAT_VERSION}; choose one of {', '.join(written_coders())}")
+    if settings.plant_feet and (settings.segment or settings.lossless):
+        raise SettingsError("plant_feet does not combine with " + ("lossless: every value comes back as it was"
+                            if settings.lossless else "segment: a segmented take's streams hold no stances"))
     if not settings.error_cm > 0:
         raise SettingsError(f"error_cm must be above 0, got {settings.error_cm}")
     bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm}

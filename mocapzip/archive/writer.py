@@ -31,6 +31,7 @@ from mocapzip.classes.segment import OVERLAP, coded_range, join_decoded, segment
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors
 from mocapzip.codec.entropy.zstd import encode_bytes, pack_blobs
+from mocapzip.codec.foot_lock import Stances
 from mocapzip.codec.lossless import encode_channels
 from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator
@@ -115,7 +116,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
             settings = replace(settings, coefficient_coder=coder)
 
         stored_settings = asdict(settings)
-        for flag in ("segment", "repair_glitches"):
+        for flag in ("segment", "repair_glitches", "plant_feet"):
             if not stored_settings[flag]:
                 del stored_settings[flag]  # absent means off
         if stored_settings["fps_from_files"]:
@@ -460,7 +461,8 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
                 unit = units[u]
                 if unit.coded is None:
                     interim[f"clip/{unit.clip:05d}"] = coding.payload
-                    _store_achieved(scan.rows[unit.clip], unit.clip, coding.achieved, coding.patches, writer)
+                    _store_achieved(scan.rows[unit.clip], unit.clip, coding.achieved, coding.patches, writer,
+                                    coding.stances)
                     if coding.twists:
                         scan.rows[unit.clip]["twist_flips"] = coding.twists
                     reader.forget([unit.source])
@@ -487,8 +489,9 @@ def _rounded_up(cm: float) -> float:
 
 
 def _store_achieved(row: dict, index: int, achieved: Achieved, patches: FramePatches | None,
-                    writer: ArchiveWriter) -> None:
-    """A clip's achieved errors into its row, and its frame patches, if any, to `writer` as `patch/NNNNN`."""
+                    writer: ArchiveWriter, stances: Stances | None = None) -> None:
+    """A clip's achieved errors into its row, and its frame patches and foot lock's stances, if any,
+    to `writer` as `patch/NNNNN` and `plant/NNNNN`."""
     # Mean and max are the bounds: stored rounded up to a millionth of a cm, never below what was
     # measured (0.998697 takes 9 fewer digits of meta than 0.9986969546376016). p99 only informs.
     row.update(error_cm=_rounded_up(achieved.mean), p99_error_cm=round(achieved.p99, 4),
@@ -498,6 +501,9 @@ def _store_achieved(row: dict, index: int, achieved: Achieved, patches: FramePat
     if patches is not None:
         row["patched_frames"] = len(patches.frames)
         writer.add(f"patch/{index:05d}", patches.payload())
+    if stances is not None:
+        row["planted_stances"] = len(stances)
+        writer.add(f"plant/{index:05d}", stances.payload())
 
 
 def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit], unit_clips: list[LoadedClip],

@@ -97,6 +97,7 @@ class BenchOptions:
     wavelet: str = "db4"
     max_error: float | str | None = None  # --max-error: a bound in cm, "none", or None for compress's default (10 x -e)
     contact_error: float | str | None = None  # --contact-error: a bound in cm, "none", or None for compress's default
+    plant_feet: bool = False  # --plant-feet: the decoder holds planted feet still (codec.foot_lock)
     hou_grid: dict | None = None  # override of hou.GRID_L/K/Q (tests, quick runs)
     units: str | None = None  # --units: of BVH lengths, where they cannot be inferred
     quiet: bool = False
@@ -423,7 +424,7 @@ def _run_mcz(task: dict, clips: list[Clip], reader, options: BenchOptions, tmp: 
     settings = {"error_cm": task["error_cm"], "representation": task["representation"],
                 "transform": _transform_config(task["transform"], options.wavelet), "classes": classes,
                 "split": task["split"], "max_error_cm": max_error_cm(options.max_error, task["error_cm"]),
-                "contact_error_cm": contact_error_cm(options.contact_error)}
+                "contact_error_cm": contact_error_cm(options.contact_error), "plant_feet": options.plant_feet}
     path = work / "bench.mcz"
     encoded = _run_child({"op": "compress", "inputs": [os.fspath(p) for p in options.inputs], "output": os.fspath(path),
                           "settings": settings, "asf": options.asf, "units": options.units, "jobs": options.jobs}, options.quiet)
@@ -517,6 +518,8 @@ def _mcz_label(task: dict, options: BenchOptions | None = None) -> str:
     contact = None if options is None else contact_error_cm(options.contact_error)
     if contact is not None:
         parts.insert(2 if bound is not None else 1, f"planted feet <= {contact:g} cm")
+    if options is not None and options.plant_feet:
+        parts.append("planted feet held")
     if task["split"]:
         parts.append("split " + ",".join(f"{s:g}" for s in task["split"]))
     return ", ".join(parts)
@@ -859,6 +862,8 @@ def command_line(options: BenchOptions) -> str:
     for flag, bound in (("--max-error", options.max_error), ("--contact-error", options.contact_error)):
         if bound is not None:
             args += [flag, "none" if bound == "none" else f"{bound:g}"]
+    if options.plant_feet:
+        args.append("--plant-feet")
     if "dwt" in options.transforms and options.wavelet != "db4":
         args += ["--wavelet", options.wavelet]
     for flag, value in (("--groups", options.groups), ("--asf", options.asf)):

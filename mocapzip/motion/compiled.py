@@ -624,6 +624,50 @@ def round_as_written(values, fixed, digits):
 
 
 @njit(cache=True)
+def _rotate_rows(frame, ax, angle):
+    """frame := Rot(ax, angle) @ frame: rows b, c of a bone frame turned about axis ax."""
+    co = math.cos(angle)
+    si = math.sin(angle)
+    b = (ax + 1) % 3
+    c = (ax + 2) % 3
+    for col in range(3):
+        rb = frame[b, col]
+        rc = frame[c, col]
+        frame[b, col] = co * rb + si * rc
+        frame[c, col] = co * rc - si * rb
+
+
+@njit(cache=True)
+def _fk_joint(values, f, j, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+              to_rad, cm_per_unit, W, pos):
+    """kinematics.forward for joint j of one frame, its parent's W and pos already made: one
+    joint of `_fk_frame`, whose loop keeps its own copy (calling this per joint measured 2x slower)."""
+    p = parents[j]
+    if p < 0:
+        for i in range(3):
+            for k in range(3):
+                W[j, i, k] = axis0[i, k]
+        pos[j, 0] = 0.0
+        pos[j, 1] = 0.0
+        pos[j, 2] = 0.0
+    else:
+        _mm(link[j], W[p], W[j])
+    cs = col_start[j]
+    if cs >= 0:
+        for k in range(nchan[j] - 1, -1, -1):
+            v = values[f, cs + k]
+            ax = chan_axis[j, k]
+            if chan_kind[j, k] == 0:
+                _rotate_rows(W[j], ax, v * to_rad)
+            else:
+                pos[j, ax] = v * cm_per_unit
+    if p >= 0:
+        for col in range(3):
+            pos[j, col] = pos[p, col] + (vct[j, 0] * W[j, 0, col] + vct[j, 1] * W[j, 1, col]
+                                         + vct[j, 2] * W[j, 2, col])
+
+
+@njit(cache=True)
 def _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
               to_rad, cm_per_unit, W, pos):
     """kinematics.forward for one frame: bone frames W (J, 3, 3) and positions (J, 3)."""
@@ -661,6 +705,155 @@ def _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind,
             for col in range(3):
                 pos[j, col] = pos[p, col] + (vct[j, 0] * W[j, 0, col] + vct[j, 1] * W[j, 1, col]
                                              + vct[j, 2] * W[j, 2, col])
+
+
+@njit(cache=True)
+def plant_feet(values, frames, feet, above, chain, dofs, weights, anchors, damping, rounds,
+               parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit):
+    """In place, in each of `frames` (n,): the `dofs` (d,) rotation columns of `values` moved so
+    that each of the `feet` (k,) joints with a weight (n, k) above 0 reaches its target. Held
+    joints (weight 1) are solved first, alone, their targets their `anchors` (n, k, 3); then, if
+    some are easing in or out (weight w below 1), all, an easing joint's target w of the way from
+    where the first pass left it (or the frame's start, without one) to its anchor. So a joint
+    that starts to ease in finds the leg where the held joints put it, and nothing jumps.
+    `chain` (m,): the joints the dofs turn on the way to the feet, parents first, their rotation
+    channels in `dofs` in that order; `above`: the chain's ancestors, parents first."""
+    J = parents.shape[0]
+    k = feet.shape[0]
+    d = dofs.shape[0]
+    m = chain.shape[0]
+    W = np.empty((J, 3, 3))
+    pos = np.empty((J, 3))
+    row = np.empty((1, values.shape[1]))
+    targets = np.empty((k, 3))
+    active = np.zeros(k, dtype=np.bool_)
+    start = np.empty(d)
+    moves = np.zeros((m, k), dtype=np.bool_)  # chain joint q lies on the way to foot a
+    for q in range(m):
+        for a in range(k):
+            j = feet[a]
+            while j >= 0 and j != chain[q]:
+                j = parents[j]
+            moves[q, a] = j >= 0
+    dof_of = np.full(values.shape[1], -1)  # a value column's place among the dofs
+    for c in range(d):
+        dof_of[dofs[c]] = c
+    work = (np.empty((3, 3)), np.zeros((3 * k, d)), np.zeros(3 * k), np.empty((d, d)), np.empty(d))
+    for i in range(frames.shape[0]):
+        f = frames[i]
+        row[0, :] = values[f, :]
+        for q in range(above.shape[0]):
+            _fk_joint(row, 0, above[q], parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                      to_rad, cm_per_unit, W, pos)
+        for q in range(m):
+            _fk_joint(row, 0, chain[q], parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                      to_rad, cm_per_unit, W, pos)
+        for c in range(d):
+            start[c] = row[0, dofs[c]]
+        held = False
+        easing = False
+        for a in range(k):
+            active[a] = weights[i, a] == 1.0
+            held = held or active[a]
+            easing = easing or 0.0 < weights[i, a] < 1.0
+            targets[a, :] = anchors[i, a]
+        if held:
+            _gauss_newton(row, W, pos, targets, active, start, feet, chain, dofs, dof_of, moves, damping, rounds,
+                          parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit, work)
+        if easing:
+            for a in range(k):
+                w = weights[i, a]
+                active[a] = w > 0.0
+                if 0.0 < w < 1.0:
+                    for x in range(3):
+                        targets[a, x] = pos[feet[a], x] + w * (anchors[i, a, x] - pos[feet[a], x])
+            _gauss_newton(row, W, pos, targets, active, start, feet, chain, dofs, dof_of, moves, damping, rounds,
+                          parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit, work)
+        for c in range(d):
+            values[f, dofs[c]] = row[0, dofs[c]]
+
+
+@njit(cache=True)
+def _gauss_newton(row, W, pos, targets, active, start, feet, chain, dofs, dof_of, moves, damping, rounds,
+                  parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit, work):
+    """`rounds` rounds of damped Gauss-Newton, in radians, on |target - position|^2 over the
+    `active` feet + damping * |dof angles - start|^2, from `row`'s values (W and pos: their
+    kinematics, kept up to date). A fixed number of rounds, with no test of whether a round
+    helped: two decoders whose rounding differs then still agree to rounding.
+
+    The Jacobian is exact: turning channel a of joint j by dθ turns every joint below j about the
+    world axis w (row a of j's frame before that channel turns it) through j's start, the parent's
+    position p: d position = w x (position - p) dθ."""
+    turning, jac, resid, normal, grad = work
+    k, d, m = feet.shape[0], dofs.shape[0], chain.shape[0]
+    for _ in range(rounds):
+        for a in range(k):
+            for x in range(3):
+                resid[3 * a + x] = targets[a, x] - pos[feet[a], x] if active[a] else 0.0
+        for q in range(m):
+            j = chain[q]
+            cs = col_start[j]
+            if cs < 0:
+                continue
+            p = parents[j]
+            _mm(link[j], W[p], turning)
+            for kk in range(nchan[j] - 1, -1, -1):
+                if chan_kind[j, kk] != 0:
+                    continue
+                ax = chan_axis[j, kk]
+                col = dof_of[cs + kk]
+                for a in range(k):
+                    if active[a] and moves[q, a]:
+                        r0 = pos[feet[a], 0] - pos[p, 0]
+                        r1 = pos[feet[a], 1] - pos[p, 1]
+                        r2 = pos[feet[a], 2] - pos[p, 2]
+                        jac[3 * a, col] = turning[ax, 1] * r2 - turning[ax, 2] * r1
+                        jac[3 * a + 1, col] = turning[ax, 2] * r0 - turning[ax, 0] * r2
+                        jac[3 * a + 2, col] = turning[ax, 0] * r1 - turning[ax, 1] * r0
+                    else:
+                        jac[3 * a, col] = 0.0
+                        jac[3 * a + 1, col] = 0.0
+                        jac[3 * a + 2, col] = 0.0
+                _rotate_rows(turning, ax, row[0, cs + kk] * to_rad)
+        for c in range(d):
+            grad[c] = -damping * (row[0, dofs[c]] - start[c]) * to_rad
+            for e in range(3 * k):
+                grad[c] += jac[e, c] * resid[e]
+            for c2 in range(d):
+                total = damping if c == c2 else 0.0
+                for e in range(3 * k):
+                    total += jac[e, c] * jac[e, c2]
+                normal[c, c2] = total
+        _solve_spd(normal, grad)  # grad becomes the step
+        for c in range(d):
+            row[0, dofs[c]] += grad[c] / to_rad
+        for q in range(m):
+            _fk_joint(row, 0, chain[q], parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                      to_rad, cm_per_unit, W, pos)
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_spd(a, b):
+    """b := a^-1 b for a symmetric positive definite `a` (Cholesky, in place; `a` is overwritten).
+    A matrix that is not (numerically), from a hostile skeleton, gives NaN, never an exception:
+    the reader refuses values that are not finite."""
+    n = a.shape[0]
+    for i in range(n):
+        for k in range(i + 1):
+            total = a[i, k]
+            for p in range(k):
+                total -= a[i, p] * a[k, p]
+            a[i, k] = math.sqrt(total) if i == k else total / a[k, k]
+    for i in range(n):
+        total = b[i]
+        for p in range(i):
+            total -= a[i, p] * b[p]
+        b[i] = total / a[i, i]
+    for i in range(n - 1, -1, -1):
+        total = b[i]
+        for p in range(i + 1, n):
+            total -= a[p, i] * b[p]
+        b[i] = total / a[i, i]
 
 
 @njit(cache=True)

@@ -26,6 +26,7 @@ import numpy as np
 
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct, scale_root
+from mocapzip.codec.foot_lock import Stances
 from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
@@ -33,6 +34,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.clip import FinalCheck
 from mocapzip.parallel import parallel_map
 from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved, smallest_within
+from mocapzip.ratecontrol.planted_feet import planted
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
 from mocapzip.representations.weighted import joint_position_columns
@@ -207,22 +209,27 @@ class ClassCoding:
     """A clip's coding as its class stores it: the stream, its row's errors and twist flips, and its patches."""
 
     payload: bytes  # `CodedClip.payload`, "context" coder
-    achieved: Achieved  # every joint of every frame as written, patches applied
+    achieved: Achieved  # every joint of every frame as written, foot lock and patches applied
     patches: FramePatches | None  # `max_error.achieved`: None without a bound, or with no frame beyond it
     twists: dict  # twist flips for the clip's row (`LoadedClip.final_check`)
+    stances: Stances | None = None  # --plant-feet: the stances its foot lock holds (`planted_feet.planted`)
 
     @cached_property
     def patch_bytes(self) -> int:
         return 0 if self.patches is None else len(self.patches.payload())
 
+    @cached_property
+    def stance_bytes(self) -> int:
+        return 0 if self.stances is None else len(self.stances.payload())
+
     @property
     def size(self) -> int:
-        return len(self.payload) + self.patch_bytes
+        return len(self.payload) + self.patch_bytes + self.stance_bytes
 
 
 def _code_clip(index: int) -> ClassCoding:
-    """The clip coded with the class basis, and what it achieves; with a bound on single joints
-    (settings.max_error_cm, contact_error_cm), at the mean aim that needs the fewest bytes with
+    """The clip coded with the class basis, its foot lock (settings.plant_feet), and what it achieves;
+    with a bound on single joints (settings.max_error_cm, contact_error_cm), at the mean aim that needs the fewest bytes with
     its patches (`max_error.smallest_within`)."""
     settings, clip, transform, basis = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
     step, band, scale = _SHARED["starts"][index] or (None, None, None)
@@ -230,7 +237,8 @@ def _code_clip(index: int) -> ClassCoding:
     def coded_at(target: float) -> ClassCoding:
         start = (step, band) if target == settings.error_cm and step is not None else None  # what was estimated
         coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, start, scale)
-        return ClassCoding(coding.coded.payload(), *achieved(clip, coding.check, bounds), coding.twists)
+        check, stances = planted(clip, coding.check, settings.error_cm) if settings.plant_feet else (coding.check, None)
+        return ClassCoding(coding.coded.payload(), *achieved(clip, check, bounds), coding.twists, stances)
 
     bounds = Bounds.of(settings)
     return smallest_within(coded_at, settings.error_cm, bounds.on_joints)

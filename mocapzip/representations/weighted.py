@@ -224,20 +224,20 @@ class DecodeTail:
 
     def positions(self, values: np.ndarray) -> np.ndarray:
         """Forward kinematics of channel `values`: joint positions (F, J, 3) in cm."""
-        return compiled.fk_positions(np.ascontiguousarray(values, dtype=np.float64), *self._fk_tables())
+        return compiled.fk_positions(np.ascontiguousarray(values, dtype=np.float64), *self.fk_tables())
 
     def error(self, values: np.ndarray, original_positions: np.ndarray) -> tuple[float, float]:
         """(mean, max) distance in cm between the joints of channel `values` and `original_positions`."""
         return compiled.fk_distances(np.ascontiguousarray(values, dtype=np.float64),
-                                     np.ascontiguousarray(original_positions, dtype=np.float64), *self._fk_tables())
+                                     np.ascontiguousarray(original_positions, dtype=np.float64), *self.fk_tables())
 
     def joint_distances(self, values: np.ndarray, original_positions: np.ndarray) -> np.ndarray:
         """(F, J) distance in cm between each joint of channel `values` and of `original_positions`."""
         return compiled.fk_joint_distances(np.ascontiguousarray(values, dtype=np.float64),
                                            np.ascontiguousarray(original_positions, dtype=np.float64),
-                                           *self._fk_tables())
+                                           *self.fk_tables())
 
-    def _fk_tables(self) -> tuple:
+    def fk_tables(self) -> tuple:
         return (self.parents, self.link, self.offset_in_axes, np.ascontiguousarray(self.model.axis[0]),
                 self.first_column, self.n_channels, self.channel_kind, self.channel_axis, self.to_rad,
                 float(self.model.cm_per_unit))

@@ -89,6 +89,13 @@ def decode_archive(path, bvh_clips: dict | None = None) -> dict:
                 skeleton = model.skeleton
 
             decoded = geometry.lossy_channels(settings, version, row, skeleton, coefficients)
+            if "planted_stances" in row:
+                if version < 9:
+                    raise ValueError("planted_stances in a format before 9")
+                sk = skeleton(False)
+                stances = streams.planted_stances(container.read(f"plant/{index:05d}"), row,
+                                                  len(geometry.foot_joints(sk)))
+                geometry.hold_planted_feet(decoded, stances, row, sk)
             if "patched_frames" in row:
                 if version < 5:
                     raise ValueError("patched_frames in a format before 5")

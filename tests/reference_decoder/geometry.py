@@ -693,3 +693,138 @@ def add_patches(values, patches, row, sk):
     base = np.array(base)
     for frame, level, ints in frames:
         values[frame] = values[frame] + ints.astype(np.float64) * (base * (step_cm * 2.0 ** -level))
+
+
+# --------------------------------------------------------------------------- §8b foot lock (format 9)
+
+FOOT = re.compile(r"toe|foot", re.IGNORECASE)
+LOCK_RAMP, LOCK_ROUNDS, LOCK_DAMPING = 8, 3, 4.0
+
+
+def foot_joints(sk):
+    """§8b: the joints named like a toe or a foot, in joint order."""
+    return [j for j, name in enumerate(sk.names) if FOOT.search(name)]
+
+
+def forward(sk, row, values):
+    """Joint positions (F, J, 3) cm of AMC values laid out as the row says (§8b)."""
+    return forward_with_rotations(sk, row, values)[0]
+
+
+def forward_with_rotations(sk, row, values):
+    """(positions (F, J, 3) cm, world rotations (J, F, 3, 3)): R_j = C_j^T M_j C_j R_p, T_j = T_p + V_j R_j."""
+    frames, to_rad = values.shape[0], (1.0 if row["angle_unit"] == "rad" else DEG)
+    column = {}
+    col = 0
+    for name, count in zip(row["bones"], row["counts"]):
+        column[sk.index[name]] = col
+        col += count
+    R = np.zeros((len(sk.names), frames, 3, 3))
+    T = np.zeros((len(sk.names), frames, 3))
+    for j in range(len(sk.names)):
+        m = np.broadcast_to(np.eye(3), (frames, 3, 3)).copy()
+        if j in column:
+            for i, channel in enumerate(sk.channels[j]):
+                v = values[:, column[j] + i]
+                if channel[0] == "r":
+                    m = m @ rot(AXIS[channel[1]], v * to_rad)
+                else:
+                    T[j][:, AXIS[channel[1]]] = v * sk.cm_per_unit
+        base = np.eye(3) if j == 0 else R[sk.parent[j]]
+        R[j] = sk.C[j].T @ m @ sk.C[j] @ base
+        if j:
+            T[j] = T[sk.parent[j]] + np.einsum("k,fkl->fl", sk.V[j], R[j])
+    return np.transpose(T, (1, 0, 2)), R
+
+
+def hold_planted_feet(values, stances, row, sk):
+    """§8b: each stance's foot joint held at its mean decoded position, in place."""
+    feet, count = foot_joints(sk), values.shape[0]
+    to_rad = 1.0 if row["angle_unit"] == "rad" else DEG
+    column, col = {}, 0
+    for name, n in zip(row["bones"], row["counts"]):
+        column[sk.index[name]] = col
+        col += n
+    start = forward(sk, row, values)
+    weight = np.zeros((len(feet), count))
+    anchor = np.zeros((len(feet), count, 3))
+    for n, (foot, first, frames) in enumerate(stances):
+        end = first + frames
+        before = stances[n - 1] if n and stances[n - 1][0] == foot else None
+        after = stances[n + 1] if n + 1 < len(stances) and stances[n + 1][0] == foot else None
+        ease_in = LOCK_RAMP if before is None else min(LOCK_RAMP, (first - before[1] - before[2]) // 2)
+        ease_out = LOCK_RAMP if after is None else min(LOCK_RAMP, (after[1] - end) // 2)
+        mean = start[first:end, feet[foot]].mean(axis=0)
+        for t in range(first, end):
+            weight[foot, t], anchor[foot, t] = 1.0, mean
+        for length, frame_of in ((ease_in, lambda i, L: first - L - 1 + i), (ease_out, lambda i, L: end + L - i)):
+            for i in range(1, length + 1):
+                t = frame_of(i, length)
+                if 0 <= t < count:
+                    weight[foot, t] = 0.5 - 0.5 * math.cos(PI * i / (length + 1))
+                    anchor[foot, t] = mean
+    rotates = [j in column and any(c[0] == "r" for c in sk.channels[j]) for j in range(len(sk.names))]
+    legs = {}
+    for f, joint in enumerate(feet):
+        path, above, j = [], 0, joint
+        while j > 0 and above < 2:
+            path.append(j)
+            above += rotates[j] and not FOOT.search(sk.names[j])
+            j = sk.parent[j]
+        if path:
+            legs.setdefault(path[-1], []).append((f, path))
+    for top in sorted(legs):
+        members = legs[top]
+        chain = sorted({j for _, path in members for j in path})
+        dof_channels = [(j, i) for j in chain if j in column for i, c in enumerate(sk.channels[j]) if c[0] == "r"]
+        dofs = [column[j] + i for j, i in dof_channels]
+        leg_feet = [f for f, _ in members]
+        if not dofs:
+            continue
+        joints = [feet[f] for f in leg_feet]
+
+        def jacobian(v, p, rotations, active):
+            """§8b: d position of foot / d angle (rad) = w x (position - parent's position)."""
+            jac = np.zeros((len(joints), 3, len(dofs)))
+            for c, (j, i) in enumerate(dof_channels):
+                turn = np.eye(3)  # the rotations after channel i, then C_j R_p
+                for later, channel in enumerate(sk.channels[j]):
+                    if later > i and channel[0] == "r":
+                        turn = turn @ rot(AXIS[channel[1]], v[0, column[j] + later] * to_rad)
+                w = (turn @ sk.C[j] @ rotations[sk.parent[j]][0])[AXIS[sk.channels[j][i][1]]]
+                for a, foot in enumerate(joints):
+                    below = foot
+                    while below > 0 and below != j:
+                        below = sk.parent[below]
+                    if active[a] and below == j:
+                        jac[a, :, c] = np.cross(w, p[foot] - p[sk.parent[j]])
+            return jac.reshape(3 * len(joints), len(dofs))
+
+        def solve(frame_values, target, active, first_angles):
+            """§8b: ROUNDS rounds of damped Gauss-Newton, in place."""
+            for _ in range(LOCK_ROUNDS):
+                reached, rotations = forward_with_rotations(sk, row, frame_values)
+                residual = np.where(active[:, None], target - reached[0, joints], 0.0).ravel()
+                jac = jacobian(frame_values, reached[0], rotations, active)
+                gradient = jac.T @ residual - LOCK_DAMPING * (frame_values[0, dofs] - first_angles) * to_rad
+                try:
+                    step = np.linalg.solve(jac.T @ jac + LOCK_DAMPING * np.eye(len(dofs)), gradient)
+                except np.linalg.LinAlgError:  # §8b: no solution; the clip has no finite values
+                    step = np.full(len(dofs), np.nan)
+                frame_values[0, dofs] = frame_values[0, dofs] + step / to_rad
+
+        for t in range(count):
+            w = np.array([weight[f, t] for f in leg_feet])
+            if not np.any(w > 0):
+                continue
+            anchors = np.array([anchor[f, t] for f in leg_feet])
+            frame_values = values[t:t + 1].copy()
+            first_angles = frame_values[0, dofs].copy()
+            if np.any(w == 1.0):  # pass 1: the held joints alone
+                solve(frame_values, anchors, w == 1.0, first_angles)
+            easing = (w > 0) & (w < 1)
+            if np.any(easing):  # pass 2: all, the easing ones from where pass 1 left them
+                now = forward(sk, row, frame_values)[0, joints]
+                target = np.where(easing[:, None], now + w[:, None] * (anchors - now), anchors)
+                solve(frame_values, target, w > 0, first_angles)
+            values[t, dofs] = frame_values[0, dofs]

@@ -404,3 +404,24 @@ def frame_patches(data: bytes, row: dict) -> tuple[float, list]:
             raise ValueError(f"patched frame {frame} is past the clip's {row['frames']} frames")
         patches.append((frame, level, ints))
     return step_cm, patches
+
+
+# --------------------------------------------------------------------------- plant/NNNNN (format 9)
+
+def planted_stances(data: bytes, row: dict, n_feet: int) -> list:
+    """`plant/NNNNN`: [(foot, first frame, frames), ...] for the row's `planted_stances`."""
+    count = row["planted_stances"]
+    (stored,) = decode_matrices(data, [(count, 3)], 1)
+    stances = []
+    for i in range(count):
+        foot, gap, frames = (int(x) for x in stored[i])
+        if not 0 <= foot < n_feet or (stances and foot < stances[-1][0]):
+            raise ValueError(f"stance {i}: foot {foot}")
+        if gap < 0 or frames < 1:
+            raise ValueError(f"stance {i}: gap {gap}, frames {frames}")
+        same = stances and stances[-1][0] == foot
+        first = (stances[-1][1] + stances[-1][2] if same else 0) + gap
+        if first + frames > row["frames"]:
+            raise ValueError(f"stance {i} ends past the clip's {row['frames']} frames")
+        stances.append((foot, first, frames))
+    return stances
