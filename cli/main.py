@@ -164,12 +164,12 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--max-error", "max_error", metavar="CM|none", callback=max_error_value, default=None,
               help="Also bound every joint of every frame: none ends up further than CM from the source, "
                    "measured end to end through the written AMC (the frames beyond it are patched). Default: "
-                   f"{MAX_TO_MEAN:g} x -e, which removes gross errors (CMU at -e 1: 0.5 % of frames, 3 % more "
-                   "bytes); tighter bounds cost more (5 cm: 34 %; docs/fidelity.md); 'none': no bound.")
+                   f"{MAX_TO_MEAN:g} x -e, which removes gross errors (CMU at -e 1: 0.5 % of frames, 4 % more "
+                   "bytes); tighter bounds cost more (5 cm: 41 %; docs/fidelity.md); 'none': no bound.")
 @click.option("--contact-error", "contact_error", metavar="CM|none", callback=max_error_value, default=None,
               help="Bound on planted feet: each foot or toe joint, in the frames where the source has it on the "
                    "ground and still, ends up within CM of the source (frame patches). Off by default: it costs "
-                   "a lot and feet slide MORE, not less (CMU -e 1, 2 cm: +58 % bytes, skate 6.8 -> 9.6 cm/s; "
+                   "a lot and feet slide MORE, not less (CMU -e 1, 2 cm: +64 % bytes, skate 6.6 -> 11.1 cm/s; "
                    "docs/fidelity.md; --plant-feet keeps them still). 'none': no such bound.")
 @click.option("--plant-feet", is_flag=True,
               help="Hold the source's planted feet still: for each run of frames where the source has a foot or "
