@@ -51,16 +51,19 @@ class Stances:
     def subset(self, keep: np.ndarray) -> "Stances":
         return Stances(self.feet[keep], self.first[keep], self.frames[keep])
 
+    def _after_previous(self) -> tuple[np.ndarray, np.ndarray]:
+        """(S - 1,) whether each stance but the first is of the previous one's joint, and the
+        frames from the previous one's end to its start."""
+        return self.feet[1:] == self.feet[:-1], self.first[1:] - (self.first + self.frames)[:-1]
+
     def eases(self) -> tuple[np.ndarray, np.ndarray]:
         """(S,) frames over which each stance eases in, and out: RAMP, or half the frames between
         it and its joint's stance before (after), rounded down, if fewer. So the windows of one
         joint's stances never overlap, and its target never jumps from one anchor to the next."""
-        ends = self.first + self.frames
-        same = self.feet[1:] == self.feet[:-1]
-        gaps = self.first[1:] - ends[:-1]
-        ease_in = np.r_[RAMP, np.where(same, np.minimum(RAMP, gaps // 2), RAMP)]
-        ease_out = np.r_[np.where(same, np.minimum(RAMP, gaps // 2), RAMP), RAMP]
-        return ease_in.astype(np.int64), ease_out.astype(np.int64)
+        same, gaps = self._after_previous()
+        between = np.full(len(self) + 1, RAMP, np.int64)  # [i]: the ease between stances i - 1 and i
+        between[1:-1] = np.where(same, np.minimum(RAMP, gaps // 2), RAMP)
+        return between[:-1], between[1:]
 
     def windows(self, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
         """(S,) first and past-the-last frame each stance moves: itself and its eases, within the clip."""
@@ -68,10 +71,9 @@ class Stances:
         return np.maximum(self.first - ease_in, 0), np.minimum(self.first + self.frames + ease_out, n_frames)
 
     def payload(self) -> bytes:
-        ends = self.first + self.frames
-        new_foot = np.r_[True, self.feet[1:] != self.feet[:-1]]
-        gaps = np.where(new_foot, self.first, self.first - np.r_[0, ends[:-1]])
-        return encode_matrices([np.column_stack([self.feet, gaps, self.frames])])
+        same, gaps = self._after_previous()
+        stored_gaps = np.r_[self.first[:1], np.where(same, gaps, self.first[1:])]
+        return encode_matrices([np.column_stack([self.feet, stored_gaps, self.frames])])
 
     @classmethod
     def from_payload(cls, blob: bytes, count: int, n_frames: int, n_feet: int) -> "Stances":

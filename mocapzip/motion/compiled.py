@@ -638,41 +638,11 @@ def _rotate_rows(frame, ax, angle):
 
 
 @njit(cache=True)
-def _fk_joint(values, f, j, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+def _fk_frame(values, f, joints, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
               to_rad, cm_per_unit, W, pos):
-    """kinematics.forward for joint j of one frame, its parent's W and pos already made: one
-    joint of `_fk_frame`, whose loop keeps its own copy (calling this per joint measured 2x slower)."""
-    p = parents[j]
-    if p < 0:
-        for i in range(3):
-            for k in range(3):
-                W[j, i, k] = axis0[i, k]
-        pos[j, 0] = 0.0
-        pos[j, 1] = 0.0
-        pos[j, 2] = 0.0
-    else:
-        _mm(link[j], W[p], W[j])
-    cs = col_start[j]
-    if cs >= 0:
-        for k in range(nchan[j] - 1, -1, -1):
-            v = values[f, cs + k]
-            ax = chan_axis[j, k]
-            if chan_kind[j, k] == 0:
-                _rotate_rows(W[j], ax, v * to_rad)
-            else:
-                pos[j, ax] = v * cm_per_unit
-    if p >= 0:
-        for col in range(3):
-            pos[j, col] = pos[p, col] + (vct[j, 0] * W[j, 0, col] + vct[j, 1] * W[j, 1, col]
-                                         + vct[j, 2] * W[j, 2, col])
-
-
-@njit(cache=True)
-def _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
-              to_rad, cm_per_unit, W, pos):
-    """kinematics.forward for one frame: bone frames W (J, 3, 3) and positions (J, 3)."""
-    J = parents.shape[0]
-    for j in range(J):
+    """kinematics.forward for one frame: bone frames W (J, 3, 3) and positions (J, 3) of `joints`,
+    in that order (parents first; a parent not among them must be made already)."""
+    for j in joints:
         p = parents[j]
         if p < 0:
             for i in range(3):
@@ -742,12 +712,10 @@ def plant_feet(values, frames, feet, above, chain, dofs, weights, anchors, dampi
     for i in range(frames.shape[0]):
         f = frames[i]
         row[0, :] = values[f, :]
-        for q in range(above.shape[0]):
-            _fk_joint(row, 0, above[q], parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
-                      to_rad, cm_per_unit, W, pos)
-        for q in range(m):
-            _fk_joint(row, 0, chain[q], parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
-                      to_rad, cm_per_unit, W, pos)
+        _fk_frame(row, 0, above, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad,
+                  cm_per_unit, W, pos)
+        _fk_frame(row, 0, chain, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad,
+                  cm_per_unit, W, pos)
         for c in range(d):
             start[c] = row[0, dofs[c]]
         held = False
@@ -827,9 +795,8 @@ def _gauss_newton(row, W, pos, targets, active, start, feet, chain, dofs, dof_of
         _solve_spd(normal, grad)  # grad becomes the step
         for c in range(d):
             row[0, dofs[c]] += grad[c] / to_rad
-        for q in range(m):
-            _fk_joint(row, 0, chain[q], parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
-                      to_rad, cm_per_unit, W, pos)
+        _fk_frame(row, 0, chain, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad,
+                  cm_per_unit, W, pos)
 
 
 @njit(cache=True, error_model="numpy")
@@ -862,9 +829,10 @@ def fk_positions(values, parents, link, vct, axis0, col_start, nchan, chan_kind,
     F = values.shape[0]
     J = parents.shape[0]
     out = np.empty((F, J, 3))
+    every = np.arange(J)
     W = np.empty((J, 3, 3))
     for f in range(F):
-        _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+        _fk_frame(values, f, every, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                   to_rad, cm_per_unit, W, out[f])
     return out
 
@@ -893,11 +861,12 @@ def fk_joint_distances(values, original, parents, link, vct, axis0, col_start, n
     """metrics.joint_distances of fk_positions(values) and `original`: (F, J) cm."""
     F = values.shape[0]
     J = parents.shape[0]
+    every = np.arange(J)
     W = np.empty((J, 3, 3))
     pos = np.empty((J, 3))
     d = np.empty((F, J))
     for f in range(F):
-        _fk_frame(values, f, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+        _fk_frame(values, f, every, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                   to_rad, cm_per_unit, W, pos)
         for j in range(J):
             x = pos[j, 0] - original[f, j, 0]
