@@ -20,7 +20,7 @@ from mocapzip.cli.classify import classify
 from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, contact_error_cm, max_error_cm,
                                   max_error_value)
 from mocapzip.cli.errors import reports_errors
-from mocapzip.defaults import DEFAULT_FPS
+from mocapzip.defaults import DEFAULT_CACHE_MB, DEFAULT_FPS
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -208,7 +208,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
               help="Unit of the lengths in BVH files (OFFSETs, position channels). Default: inferred from the "
                    "skeleton's size (a human's in cm, mm or m), refused where it cannot be (--lossless needs none); `mcz info` says which.")
 @jobs_option("reading the clips, the error search and the priors")
-@click.option("--cache-mb", type=click.IntRange(min=0), default=512, show_default=True,
+@click.option("--cache-mb", type=click.IntRange(min=0), default=DEFAULT_CACHE_MB, show_default=True,
               help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
                    "so memory stays bounded however large the database. -c auto and --segment keep every clip "
                    "in memory regardless.")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import doctest
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -120,3 +121,33 @@ def test_compress_refuses_options_it_cannot_honour_before_reading_anything(tmp_p
     with pytest.raises(mocapzip.SettingsError, match=message):
         mocapzip.compress(tmp_path / "no such folder", tmp_path / "a.mcz", **options)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_compress_runs_on_one_blas_thread_in_every_process_and_gives_the_caller_its_own_back(
+        shared_data, tmp_path, monkeypatch):
+    """The API's caller imported numpy first, so its BLAS runs a thread per core; mcz's work (here and
+    in its forked workers) gets one, as from the command line (`parallel.one_blas_thread`)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from mocapzip.inputs.clip import LoadedClip
+
+    def blas_threads() -> int:
+        return max(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas")
+
+    seen = tmp_path / "seen"
+    error = LoadedClip.error
+
+    def error_noting_threads(self, *args, **kwargs):
+        with open(seen, "a") as out:
+            out.write(f"{os.getpid()} {blas_threads()}\n")
+        return error(self, *args, **kwargs)
+
+    monkeypatch.setattr(LoadedClip, "error", error_noting_threads)
+    with threadpool_limits(limits=2, user_api="blas"):  # the caller's (tests/conftest.py sets 1 otherwise)
+        assert blas_threads() == 2
+        mocapzip.compress([shared_data / "cmu" / "07" / name for name in ("07.asf", "07_01.amc", "07_02.amc")],
+                          tmp_path / "a.mcz", jobs=2)
+        assert blas_threads() == 2
+    records = [line.split() for line in seen.read_text().splitlines()]
+    assert {threads for _, threads in records} == {"1"}
+    assert {pid for pid, _ in records} - {str(os.getpid())}, "no worker scored a clip"

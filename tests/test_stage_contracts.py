@@ -200,22 +200,22 @@ def representation_encoded(meta: dict, arrays: dict, model) -> Encoded:
     return Encoded(arrays["encoded_poses"], arrays.get("encoded_root"), params)
 
 
-def assert_float_golden(actual: np.ndarray, expected: np.ndarray, what: str) -> None:
-    """Equal to the fixture bit for bit, after a tolerance check that tells a real change
-    (large differences) from a platform's last bits.
+def assert_float_golden(compute, expected: np.ndarray, what: str) -> None:
+    """`compute()` gives the fixture's array to within 1e-9 of its scale, and the same bits each
+    time it runs.
 
-    Exact equality holds on the machine that wrote the fixtures and is asserted because it
-    does: the stages use only deterministic arithmetic (no threads, no random state), so the
-    same libraries on the same CPU give the same bits. Another CPU may not: NumPy dispatches
-    float64 sin/cos/arctan2 and matmul kernels at run time (this machine has AVX-512), and
-    pocketfft and PyWavelets are compiled per platform. A failure of the second assertion only
-    is such a difference of a few ulps, not a change of the stage.
+    The tolerance tells a changed stage (large differences) from a platform's last bits: NumPy
+    dispatches float64 sin/cos/arctan2 and matmul kernels at run time by CPU, and pocketfft and
+    PyWavelets are compiled per platform, so another CPU may differ from the machine that wrote
+    the fixtures by a few ulps (measured: 1.3e-15 cm in the representations' outputs, on an AMD
+    EPYC against the fixtures' AVX-512 machine). Bits equal from run to run are what the
+    archive's determinism needs, and are asserted on every platform.
     """
+    actual = compute()
     assert actual.shape == expected.shape and actual.dtype == expected.dtype, (actual.shape, actual.dtype)
     scale = max(1.0, float(np.abs(expected).max(initial=0.0)))
     np.testing.assert_allclose(actual, expected, rtol=0, atol=1e-9 * scale, err_msg=f"{what}: the stage changed")
-    np.testing.assert_array_equal(actual, expected, err_msg=f"{what}: last bits differ from the fixture "
-                                  "(another platform's floating point? see assert_float_golden)")
+    np.testing.assert_array_equal(compute(), actual, err_msg=f"{what}: not the same bits from run to run")
 
 
 @pytest.mark.parametrize("path", fixture_params())
@@ -226,8 +226,9 @@ def test_fixture_decodes(path, shared_data):
     assert path.name.startswith(fixture_name(kind, meta["codec_id"])[: -len(".npz")])  # the name says the stage
     stage = get_stage(kind, meta["config"])
     if kind == "transform":
-        # Exact: the inverse is deterministic arithmetic (see assert_float_golden).
-        assert_float_golden(stage.inverse(arrays["encoded"], len(arrays["encoded"])), arrays["decoded"], "inverse")
+        # the inverse is deterministic arithmetic, to the last bit on one platform (see assert_float_golden)
+        assert_float_golden(lambda: stage.inverse(arrays["encoded"], len(arrays["encoded"])), arrays["decoded"],
+                            "inverse")
         np.testing.assert_allclose(arrays["decoded"], arrays["input"], rtol=0, atol=1e-12 * np.abs(arrays["input"]).max())
     elif kind == "quantiser":
         assert arrays["encoded"].dtype == np.int64
@@ -249,9 +250,11 @@ def test_fixture_decodes(path, shared_data):
     elif kind == "representation":
         model, motion = clip_of(meta, shared_data)
         assert_bits_equal(arrays["input"], motion.values)
-        decoded = stage.inverse(model, representation_encoded(meta, arrays, model), motion)
-        assert_float_golden(decoded, arrays["decoded"], "inverse")  # exact: see assert_float_golden
-        np.testing.assert_allclose(decoded, motion.values, rtol=0, atol=1e-6)
+        def decoded():
+            return stage.inverse(model, representation_encoded(meta, arrays, model), motion)
+
+        assert_float_golden(decoded, arrays["decoded"], "inverse")
+        np.testing.assert_allclose(decoded(), motion.values, rtol=0, atol=1e-6)
     else:
         pytest.fail(f"no fixture check for kind {kind!r}")
 
@@ -266,7 +269,7 @@ def test_fixture_encoder_is_unchanged(path, shared_data):
     stage = get_stage(kind, meta["config"])
     assert not getattr(stage, "decode_only", False)
     if kind == "transform":
-        assert_float_golden(stage.forward(arrays["input"]), arrays["encoded"], "forward")
+        assert_float_golden(lambda: stage.forward(arrays["input"]), arrays["encoded"], "forward")
     elif kind == "quantiser":
         np.testing.assert_array_equal(stage.quantise(arrays["input"]), arrays["encoded"])
     elif kind == "coefficient coder":
@@ -281,14 +284,15 @@ def test_fixture_encoder_is_unchanged(path, shared_data):
     elif kind == "representation":
         model, motion = clip_of(meta, shared_data)
         encoded = stage.forward(model, motion)
-        assert_float_golden(encoded.poses, arrays["encoded_poses"], "forward poses")
+        assert_float_golden(lambda: stage.forward(model, motion).poses, arrays["encoded_poses"], "forward poses")
         assert (encoded.root is None) == ("encoded_root" not in arrays)
         if encoded.root is not None:
-            assert_float_golden(encoded.root, arrays["encoded_root"], "forward root")
+            assert_float_golden(lambda: stage.forward(model, motion).root, arrays["encoded_root"], "forward root")
         stored = {key[len("param_"):] for key in arrays if key.startswith("param_")}
         assert set(encoded.params) == stored
         for key in stored:
-            assert_float_golden(np.asarray(encoded.params[key], np.float64), arrays[f"param_{key}"], f"param {key}")
+            assert_float_golden(lambda: np.asarray(stage.forward(model, motion).params[key], np.float64),
+                                arrays[f"param_{key}"], f"param {key}")
     else:
         pytest.fail(f"no fixture check for kind {kind!r}")
 

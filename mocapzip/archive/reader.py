@@ -37,7 +37,7 @@ from mocapzip.formats.mcz import ArchiveError, ArchiveReader
 from mocapzip.formats.text import MAX_ABS_VALUE, write_file_atomically
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
-from mocapzip.parallel import imap
+from mocapzip.parallel import imap, one_blas_thread
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
@@ -360,6 +360,7 @@ class Archive:
             _SHARED.clear()
 
 
+@one_blas_thread
 def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: int = 1) -> dict:
     """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`,
     made by `jobs` worker processes and written here one at a time, in the archive's order.

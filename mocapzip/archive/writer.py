@@ -41,10 +41,10 @@ from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveWriter
 from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, no_clips, record_skip
-from mocapzip.defaults import UNITS_CM
+from mocapzip.defaults import DEFAULT_CACHE_MB, UNITS_CM
 from mocapzip.motion.bvh_skeleton import BvhSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
-from mocapzip.parallel import imap, parallel_map
+from mocapzip.parallel import imap, one_blas_thread, parallel_map
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
 from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved
@@ -54,9 +54,9 @@ from mocapzip.stages import get_stage
 TIGHTENINGS = 8  # times a segmented take's segments are coded again, 10 % tighter, if the joined take misses
 # clip streams are held coded "context" until all are coded: "primed" needs priors trained on every clip
 INTERIM_CODER = "context"
-DEFAULT_CACHE_MB = 512  # clips kept in memory between compress's passes (inputs.clip.ClipReader)
 
 
+@one_blas_thread
 def compress(inputs, output, settings: Settings, asf=None, force: bool = False, jobs: int = 1,
              skip_bad: bool = False, cache_bytes: int | None = DEFAULT_CACHE_MB << 20, units: str | None = None) -> dict:
     """Compress every clip under `inputs` into `output`; return the summary (also stored in meta).

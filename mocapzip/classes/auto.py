@@ -45,8 +45,8 @@ from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.classes.ppca import DEFAULT_VARIANCE_SHARE, PpcaModel
 from mocapzip.parallel import parallel_map
+from mocapzip.ratecontrol.encode import pca_share
 
-PCA_SHARES = (0.3, 0.5, 0.7)  # as ratecontrol.encode.PCA_SHARES
 SEARCH_STRIDE = 4  # calibration scores every 4th frame at most (MAX_CALIBRATION_FRAMES caps the count)
 CALIBRATION_Q = (8, 16, 24, 32, 48, 64, 96)  # truncations scored per clip
 MAX_CALIBRATION_FRAMES = 80  # frames scored per clip when calibrating (every 4th, or sparser)
@@ -376,9 +376,8 @@ def _basis_bytes(pca: PcaBasis, q: int, settings) -> int:
 
 
 def _shares(settings) -> tuple[float, ...]:
-    if settings.split:
-        return (settings.split[1] / sum(settings.split),)
-    return PCA_SHARES
+    """The PCA shares of the error budget a class is estimated at: the encoder's one."""
+    return (pca_share(settings),)
 
 
 def _weighted_truncation(stat: ClipStats, mean: np.ndarray, v: np.ndarray, gram: np.ndarray) -> np.ndarray:

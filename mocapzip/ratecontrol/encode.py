@@ -44,7 +44,9 @@ ROOT_STEP_RATIO = 0.2
 
 SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), denser below 2,048 frames; the final check all
 ESTIMATE_FRAMES = 64  # the estimates that choose a basis sample every 8th frame down to 512 frames, 64 frames below
-PCA_SHARES = (0.3, 0.5, 0.7)  # candidate shares of the budget for PCA; the rest goes to quantisation
+PCA_SHARE = 0.4  # of the error budget, for PCA truncation; the rest goes to the quantiser. The best single
+# share on the shared CMU set (0.3 to 0.5 tried, at 1 and 0.5 cm); choosing among 0.3, 0.5 and 0.7 per class
+# by estimated bytes, as before, came out 0.2 % larger at 1 cm, 0.7 % smaller at 0.5 cm, and took 25 % longer
 STEP_RANGE = (1e-4, 1e3)  # quantiser steps searched, in cm-equivalent units
 BANDS = (1.0, 0.2, 0.16, 0.13, 0.11, 0.095, 0.08, 0.07, 0.06, 0.05, 0.043, 0.036, 0.03, 0.025, 0.02)  # kept shares
 STEP_GUESS = 3.0  # typical step / target (CMU, 1 cm): where the step search starts
@@ -58,7 +60,6 @@ PROXY_CLOSE = 0.01  # ... or stop at a step whose proxy error is within 1 % unde
 # wobbles by about that much between steps 0.3 % apart (CMU: +0.04 % bytes, a third fewer proxy scores)
 BAND_RESCALE = 0.03  # a proxy factor this far from the one the band was chosen with: choose it again
 NARROWER_TRIAL = 1.06  # a narrower band whose proxy coding is at most this much larger is tried on true scores
-CANDIDATE_MARGIN = 0.01  # of the bases estimated within 1 % of the smallest, the one with most components is coded
 COARSER_BASIS_SHARE = 0.25  # a chosen basis over this share of its class's estimated bytes is also tried coarser ...
 COARSER_BASES = (2, 4)  # ... at these multiples of settings.basis_precision
 BRACKET = 0.01  # steps 1 % apart, one meeting the target and one not: the search is done
@@ -76,15 +77,11 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
     clip a `ClassCoding` (its stream, achieved errors, twist flips and, with settings.max_error_cm,
     frame patches).
 
-    The budget split is a search: for each candidate PCA share, the class keeps the fewest
-    components that bring every clip's PCA-only error under that share. Each candidate basis's
-    bytes are estimated, each clip's at the largest step its calibrated proxy allows
-    (`_estimated_sizes`), and the clips are coded (`code_clip`) with one of them: of those
-    estimated within CANDIDATE_MARGIN of the smallest, the one with most components. The
-    estimates leave out frame patches and the final tightening, which grow as components are
-    dropped, so near ties go to more components. Coding every near tie and keeping the smallest
-    (as before) gave, on the shared CMU set, 67 B less at 1 cm, the same bytes at 0.5 cm, and
-    28 % more codings. `settings.split` forces one split instead.
+    The budget is split between the basis and the quantiser: the class keeps the fewest
+    components that bring every clip's PCA-only error under PCA_SHARE of it (settings.split
+    forces another share). Each clip's bytes with that basis are then estimated at the largest
+    step its calibrated proxy allows (`_estimated_sizes`), which is also where its coding starts
+    (`code_clip`).
 
     A basis is stored at `settings.basis_precision`. One that would take more than
     COARSER_BASIS_SHARE of its class's estimated bytes (a class of few or short clips) is also
@@ -101,7 +98,6 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
             accumulator.add(clip.poses)
     pca = PcaBasis.fit(accumulator)
     target = settings.error_cm
-    shares = _pca_shares(settings)
     _SHARED.update(clips=clips, pca=pca, transform=transform, settings=settings)
 
     def basis_of(q: int, precision: float) -> ClassBasis:
@@ -109,17 +105,11 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
                                     ClassBasis.steps_for(pca.variances[:q], target, precision))
 
     try:
-        needed = np.array(parallel_map(_components_for_shares, range(len(clips)), jobs))  # (clips, shares)
-        # Shares that need the same component count get the same basis: estimate it once.
-        counts = list(dict.fromkeys(int(needed[:, k].max()) for k in range(len(shares))))
         precision = settings.basis_precision
-        candidates = [basis_of(q, precision) for q in counts]
-        basis, _SHARED["starts"] = candidates[0], [None] * len(clips)
+        basis = basis_of(max(parallel_map(_components_for_share, range(len(clips)), jobs)), precision)
+        _SHARED["starts"] = [None] * len(clips)
         if not settings.split:  # a forced split codes on end-to-end scores alone: nothing to estimate
-            totals, starts = _estimated(candidates, jobs)
-            near = [i for i, total in enumerate(totals) if total <= (1 + CANDIDATE_MARGIN) * min(totals)]
-            chosen = max(near, key=lambda i: candidates[i].q)
-            basis, total, _SHARED["starts"] = candidates[chosen], totals[chosen], starts[chosen]
+            (total,), (_SHARED["starts"],) = _estimated([basis], jobs)
             if len(basis.encode()) > COARSER_BASIS_SHARE * total:
                 # a basis that is much of its class's bytes (few or short clips) may pay to be stored coarser
                 trials = [(precision * m, basis_of(basis.q, precision * m)) for m in COARSER_BASES]
@@ -158,32 +148,25 @@ def _estimated(bases: list[ClassBasis], jobs: int) -> tuple[list[int], list[list
     return totals, [[clip[i][1] for clip in estimates] for i in range(len(bases))]
 
 
-def _components_for_shares(index: int) -> list[int]:
-    """For each PCA share, the fewest components that keep this clip's PCA-only error within it
-    (scored end to end on every SEARCH_STRIDE-th frame), found by true scores guided by
+def _components_for_share(index: int) -> int:
+    """The fewest components that keep this clip's PCA-only error within `pca_share` of the
+    target (scored end to end on every SEARCH_STRIDE-th frame), found by true scores guided by
     `proxy.TruncationProxy` (`search.smallest_count_guided`)."""
     clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
     frames = slice(None, None, SEARCH_STRIDE)
     poses, root = clip.poses[frames], None if clip.root is None else clip.root[frames]
     proxy = TruncationProxy(poses, pca.mean, pca.components, joint_position_columns(clip.model, clip.representation_name))
-    cache: dict[int, float] = {}
 
     def error(q: int) -> float:
-        if q not in cache:
-            cache[q] = clip.error(proxy.truncated(q), root, frames)[0]
-        return cache[q]
+        return clip.error(proxy.truncated(q), root, frames)[0]
 
-    scale, counts = 1.0, []
-    most = pca.components.shape[1]
-    for share in _pca_shares(settings):
-        allowed = share * settings.error_cm
-        count, scale = smallest_count_guided(error, proxy, allowed, 0, most, scale)
-        counts.append(count)
-    return counts
+    allowed = pca_share(settings) * settings.error_cm
+    return smallest_count_guided(error, proxy, allowed, 0, pca.components.shape[1])[0]
 
 
-def _pca_shares(settings) -> tuple[float, ...]:
-    return (settings.split[1] / sum(settings.split),) if settings.split else PCA_SHARES
+def pca_share(settings) -> float:
+    """The share of the error budget PCA truncation may take (the rest is the quantiser's)."""
+    return settings.split[1] / sum(settings.split) if settings.split else PCA_SHARE
 
 
 def _estimated_sizes(index: int) -> list[tuple[int, tuple[float, float, float]]]:
