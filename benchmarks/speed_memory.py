@@ -24,6 +24,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from mocapzip.defaults import DEFAULT_CACHE_MB
+
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
 BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -152,7 +154,7 @@ def markdown(results: dict) -> str:
 def memory_paragraph(memory: dict) -> str:
     kept, none, twice = (memory["runs"][name] for name in ("default cache", "no cache", "no cache, set twice"))
     return (f"**Bounded memory.** `mcz compress` keeps clips in memory between its passes while they fit in "
-            f"`--cache-mb` (512 by default) and reads the others again. On the shared CMU set "
+            f"`--cache-mb` ({DEFAULT_CACHE_MB} by default) and reads the others again. On the shared CMU set "
             f"({kept['frames']:,} frames, `-j {memory['jobs']}`): peak RSS {kept['peak_rss_mb']:.0f} MB in "
             f"{kept['seconds']:.0f} s with the default cache, {none['peak_rss_mb']:.0f} MB in {none['seconds']:.0f} s "
             f"with `--cache-mb 0`; the set twice over ({twice['frames']:,} frames) with `--cache-mb 0`: "
