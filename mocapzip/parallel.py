@@ -18,6 +18,7 @@ and it gets its parallelism from worker processes, one per core.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import multiprocessing
 import os
@@ -33,13 +34,24 @@ from concurrent.futures import ProcessPoolExecutor
 from threadpoolctl import threadpool_limits
 
 
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def one_blas_thread(function: Callable) -> Callable:
-    """`function`, run with one BLAS thread (its workers fork with that limit). The command line
-    sets it before numpy loads (`mocapzip.cli`); this gives it to callers of the Python API,
-    whose numpy starts a thread per core: `mocapzip.compress` of the shared CMU set with
-    `jobs=2` took 72 s without it, against the command's 14.5 s, and cmu/07 with `jobs=1`
-    3x as long."""
-    return threadpool_limits.wrap(limits=1)(function)
+    """`function`, run with one BLAS thread (its workers fork with that limit) unless the
+    environment sets a BLAS thread count: then that wins. The command line sets one before numpy
+    loads (`mocapzip.cli`); this gives it to callers of the Python API, whose numpy starts a
+    thread per core: `mocapzip.compress` of the shared CMU set with `jobs=2` took 72 s without
+    it, against the command's 14.5 s, and cmu/07 with `jobs=1` 3x as long."""
+
+    @functools.wraps(function)
+    def limited(*args, **kwargs):
+        if any(name in os.environ for name in BLAS_THREAD_VARIABLES):
+            return function(*args, **kwargs)
+        with threadpool_limits(limits=1):
+            return function(*args, **kwargs)
+
+    return limited
 
 
 _RUN_HERE: set = set()  # functions this process has run before forking workers for them (`parallel_map`)

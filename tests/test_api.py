@@ -125,14 +125,19 @@ def test_compress_refuses_options_it_cannot_honour_before_reading_anything(tmp_p
 
 def test_compress_runs_on_one_blas_thread_in_every_process_and_gives_the_caller_its_own_back(
         shared_data, tmp_path, monkeypatch):
-    """The API's caller imported numpy first, so its BLAS runs a thread per core; mcz's work (here and
-    in its forked workers) gets one, as from the command line (`parallel.one_blas_thread`)."""
+    """The API's caller imported numpy first, with no BLAS thread count in its environment, so its BLAS
+    runs a thread per core; mcz's work (here and in its forked workers) gets one, as from the command
+    line (`parallel.one_blas_thread`)."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
     from mocapzip.inputs.clip import LoadedClip
+    from mocapzip.parallel import BLAS_THREAD_VARIABLES
 
     def blas_threads() -> int:
-        return max(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas")
+        return max((lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"), default=0)
+
+    for name in BLAS_THREAD_VARIABLES:  # tests/conftest.py set them before numpy loaded; this caller has none
+        monkeypatch.delenv(name, raising=False)
 
     seen = tmp_path / "seen"
     error = LoadedClip.error
@@ -143,7 +148,7 @@ def test_compress_runs_on_one_blas_thread_in_every_process_and_gives_the_caller_
         return error(self, *args, **kwargs)
 
     monkeypatch.setattr(LoadedClip, "error", error_noting_threads)
-    with threadpool_limits(limits=2, user_api="blas"):  # the caller's (tests/conftest.py sets 1 otherwise)
+    with threadpool_limits(limits=2, user_api="blas"):  # the caller's
         assert blas_threads() == 2
         mocapzip.compress([shared_data / "cmu" / "07" / name for name in ("07.asf", "07_01.amc", "07_02.amc")],
                           tmp_path / "a.mcz", jobs=2)
@@ -151,3 +156,20 @@ def test_compress_runs_on_one_blas_thread_in_every_process_and_gives_the_caller_
     records = [line.split() for line in seen.read_text().splitlines()]
     assert {threads for _, threads in records} == {"1"}
     assert {pid for pid, _ in records} - {str(os.getpid())}, "no worker scored a clip"
+
+
+def test_an_explicit_blas_thread_count_in_the_environment_wins(monkeypatch):
+    """`OPENBLAS_NUM_THREADS` (or OMP_, MKL_) set by the caller is theirs to choose: mcz leaves BLAS as it is."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from mocapzip.parallel import one_blas_thread
+
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    seen = one_blas_thread(lambda: [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"])
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert set(seen()) == {2}
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS")
+    for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        monkeypatch.delenv(name, raising=False)
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert set(seen()) == {1}

@@ -18,9 +18,9 @@ codec's poses), so no frame is touched while iterating:
   the memberships are hard and stable. Random orthonormal initial bases (seeded).
 
 Which partition wins, and which K when none is given, is decided by bytes. The estimate
-(`ByteProxy`) runs the lossy codec in pose space: per class the PCA basis, for each PCA
-share of the budget the fewest components keeping every member within it (the class
-keeps the maximum, as `ratecontrol.encode.encode_class` does), the stored basis size (the real
+(`ByteProxy`) runs the lossy codec in pose space: per class the PCA basis, the fewest components keeping every member within the encoder's
+PCA share of the budget (`ratecontrol.encode.pca_share`; the class keeps the maximum, as
+`ratecontrol.encode.encode_class` does), the stored basis size (the real
 `ClassBasis.encode`), and per clip the largest quantiser step meeting the budget and the
 size of its coefficients in the entropy coder's layouts (zstd at a faster level). Only
 the end-to-end error is modelled rather than measured: per clip, a joint-sensitivity
@@ -275,11 +275,11 @@ class ByteProxy:
     decoder's inverse and forward kinematics. (Unweighted, a bone-axis column that turns a
     whole leg would count like a position column that moves one joint a little.)
     tolerance[i, s]: the weighted RMS error per frame clip i may keep after truncation to
-    meet PCA share s of the budget, read off the clip's measured truncation curve
+    meet PCA share s of the budget (`_shares`: the encoder's one), read off the clip's measured truncation curve
     (`curves[i]`: log weighted RMS error, log mean joint error). Truncation and quantisation
     errors combine as e^p = t^p + (gamma_i u)^p (p = ERROR_POWER; t the truncation's joint
     error, u the weighted RMS quantisation error, gamma_i measured at the codec's step for
-    the middle share, with the root track quantised alongside).
+    the encoder's share, with the root track quantised alongside).
     """
 
     poses: list[np.ndarray]
@@ -423,7 +423,7 @@ def _calibrate_clip(index: int):
 
     Truncations of the PCA of all clips give pairs (weighted pose RMS error, mean joint
     error): the truncation curve; each PCA share's target is read off it. Then, keeping the
-    components of the middle share, the codec's step search (`search.largest_step`, the root
+    components of the middle share (the encoder's), the codec's step search (`search.largest_step`, the root
     step a fixed share of the pose step as in the codec) finds the step meeting the whole budget, and gamma
     follows from the combination rule (see ByteProxy).
     """
@@ -624,7 +624,7 @@ def plan(clips, k: int | None, settings, *, max_k: int | None = None, seed: int 
 
 def _anneal_dims(stats, proxy: ByteProxy) -> int:
     """Subspace dimension for annealing: the median over clips of the components one class of
-    everything needs to meet the middle PCA share (so the subspaces are as large as coded ones)."""
+    everything needs to meet the middle PCA share, the encoder's (so the subspaces are as large as coded ones)."""
     pca = _pca(stats)
     s = len(_shares(proxy.settings)) // 2
     need = []

@@ -43,7 +43,7 @@ ROOT_STEP_RATIO = 0.2
 
 
 SEARCH_STRIDE = 8  # searches score every 8th frame (15 Hz at 120 Hz), denser below 2,048 frames; the final check all
-ESTIMATE_FRAMES = 64  # the estimates that choose a basis sample every 8th frame down to 512 frames, 64 frames below
+ESTIMATE_FRAMES = 64  # the estimates that choose a basis's precision sample every 8th frame down to 512 frames, 64 below
 PCA_SHARE = 0.4  # of the error budget, for PCA truncation; the rest goes to the quantiser. The best single
 # share on the shared CMU set (0.3 to 0.5 tried, at 1 and 0.5 cm); choosing among 0.3, 0.5 and 0.7 per class
 # by estimated bytes, as before, came out 0.2 % larger at 1 cm, 0.7 % smaller at 0.5 cm, and took 25 % longer
@@ -171,12 +171,13 @@ def pca_share(settings) -> float:
 
 
 def _estimated_sizes(index: int) -> list[tuple[int, tuple[float, float, float]]]:
-    """Per candidate basis, the clip's coded bytes as the calibrated proxy predicts them, and
-    where its coding with that basis starts (step, band, proxy factor: `code_clip`'s `start`).
+    """Per basis in `_SHARED["bases"]` (the class basis, or copies of it stored coarser), the
+    clip's coded bytes as the calibrated proxy predicts them, and where its coding with that
+    basis starts (step, band, proxy factor: `code_clip`'s `start`).
 
     Each basis's bands are searched near the band the one before picked (`_ClipSearch.pick`);
-    one end-to-end score per basis sets its factor: the proxy misses part of the error a basis
-    leaves, so the factor differs between bases."""
+    one end-to-end score per basis sets its factor: the proxy misses part of the error the
+    basis's rounding leaves, so the factor differs between bases."""
     settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
     estimates, scale, step, band = [], 1.0, None, None
     for basis in _SHARED["bases"]:
