@@ -162,7 +162,7 @@ def _components_for_share(index: int) -> int:
         return clip.error(proxy.truncated(q), root, frames)[0]
 
     allowed = pca_share(settings) * settings.error_cm
-    return smallest_count_guided(error, proxy, allowed, 0, pca.components.shape[1])[0]
+    return smallest_count_guided(error, proxy, allowed, 0, pca.components.shape[1])
 
 
 def pca_share(settings) -> float:

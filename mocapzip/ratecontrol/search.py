@@ -24,12 +24,13 @@ def smallest_count(error_at: Callable[[int], float], target: float, lo: int, hi:
 
 
 def smallest_count_guided(error_at: Callable[[int], float], proxy: Callable[[int], float], target: float,
-                          lo: int, hi: int, scale: float = 1.0) -> tuple[int, float]:
+                          lo: int, hi: int) -> int:
     """`smallest_count`, guided by a cheap `proxy` of the error: each guess is the smallest count
     whose proxy, times the ratio error / proxy last measured, meets the target, kept inside the
     bracket the true scores so far allow. A right guess costs two scores (the count and the one
-    below it). Returns (count, the ratio last measured)."""
+    below it)."""
     passed, failed = None, None  # smallest count known to meet the target, largest known to miss it
+    scale = 1.0
 
     def guess() -> int:
         count = smallest_count(lambda n: scale * proxy(n), target, lo, hi)
@@ -45,9 +46,9 @@ def smallest_count_guided(error_at: Callable[[int], float], proxy: Callable[[int
         else:
             failed = count
         if passed is not None and (passed == lo or failed == passed - 1):
-            return passed, scale
+            return passed
         if failed == hi:
-            return hi, scale
+            return hi
         if proxy(count) > 0 and error > 0:
             scale = error / proxy(count)
         count = guess()
