@@ -659,16 +659,7 @@ def _fk_frame(values, f, joints, parents, link, vct, axis0, col_start, nchan, ch
                 v = values[f, cs + k]
                 ax = chan_axis[j, k]
                 if chan_kind[j, k] == 0:
-                    angle = v * to_rad
-                    co = math.cos(angle)
-                    si = math.sin(angle)
-                    b = (ax + 1) % 3
-                    c = (ax + 2) % 3
-                    for col in range(3):
-                        rb = W[j, b, col]
-                        rc = W[j, c, col]
-                        W[j, b, col] = co * rb + si * rc
-                        W[j, c, col] = co * rc - si * rb
+                    _rotate_rows(W[j], ax, v * to_rad)
                 else:
                     pos[j, ax] = v * cm_per_unit
         if p >= 0:
