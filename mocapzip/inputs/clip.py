@@ -112,8 +112,13 @@ class LoadedClip:
         2-dof solved bone takes its other solution (`twist_flips`: `positions.TwistChoice`,
         `flip_ranges`; empty without solved bones). One decode for all of it."""
         values, twist = self._decode(poses, root, slice(None))
-        distances = self.decode_tail.joint_distances(self.as_written(values.copy()), self._originals(slice(None))[0])
-        return FinalCheck(values, distances, {} if twist is None else flip_ranges(twist.flips, self.model))
+        return self.scored(values, {} if twist is None else flip_ranges(twist.flips, self.model))
+
+    def scored(self, values: np.ndarray, twists: dict) -> FinalCheck:
+        """Decoded channel `values` (every frame) scored as written: the `FinalCheck` of a decode
+        that the encoder changed after `final_check` (the foot lock)."""
+        return FinalCheck(values, self.decode_tail.joint_distances(self.as_written(values.copy()),
+                                                                   self._originals(slice(None))[0]), twists)
 
     def as_written(self, values: np.ndarray) -> np.ndarray:
         """`values` rounded, in place, to what the AMC text the writer makes of them reads back as."""

@@ -17,7 +17,6 @@ import numpy as np
 
 from mocapzip.codec.foot_lock import Stances, hold, legs
 from mocapzip.inputs.clip import FinalCheck
-from mocapzip.motion import compiled
 from mocapzip.motion.contacts import contacts, foot_joints
 
 MERGE_GAP = 4  # frames
@@ -66,8 +65,7 @@ def planted(clip, check: FinalCheck, error_cm: float) -> tuple[FinalCheck, Stanc
         if not len(stances):
             return check, None
         locked = _locked(clip, check, stances)
-    flat = locked.distances.ravel()
-    if not compiled.np_sum(flat) / flat.size <= error_cm:  # over, or not a number
+    if not locked.error[0] <= error_cm:  # over, or not a number
         return check, None
     return locked, stances
 
@@ -75,8 +73,7 @@ def planted(clip, check: FinalCheck, error_cm: float) -> tuple[FinalCheck, Stanc
 def _locked(clip, check: FinalCheck, stances: Stances) -> FinalCheck:
     values = check.values.copy()
     hold(values, stances, clip.model, clip.decode_tail)
-    distances = clip.decode_tail.joint_distances(clip.as_written(values.copy()), clip.positions)
-    return FinalCheck(values, distances, check.twists)
+    return clip.scored(values, check.twists)
 
 
 def _raised(before: np.ndarray, after: np.ndarray, stances: Stances) -> np.ndarray:
