@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import os
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # one BLAS thread per process
+from mocapzip.defaults import BLAS_THREAD_VARIABLES  # imports nothing: numpy is not loaded yet
+
+for _var in BLAS_THREAD_VARIABLES:  # one BLAS thread per process
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402

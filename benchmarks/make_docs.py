@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import os
 
+from mocapzip.defaults import BLAS_THREAD_VARIABLES  # imports nothing: numpy is not loaded yet
+
 # Before numpy is imported anywhere (here or in a child): one BLAS thread per process. See
 # speed_memory.py for the measurement behind this; the page states it.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+for _var in BLAS_THREAD_VARIABLES:
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402

@@ -24,11 +24,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mocapzip.defaults import DEFAULT_CACHE_MB
+from mocapzip.defaults import BLAS_THREAD_VARIABLES, DEFAULT_CACHE_MB
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
-BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def largest_clips(data: Path, count: int = 3) -> list[str]:
@@ -48,9 +47,9 @@ def blas_threads(data: Path, log=print) -> dict:
     cpus = str(os.cpu_count() or 1)
     with tempfile.TemporaryDirectory() as tmp:
         for name, value in (("one thread", None), ("one per CPU", cpus)):
-            env = {k: v for k, v in os.environ.items() if k not in BLAS_VARS}
+            env = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARIABLES}
             if value:
-                env.update({k: value for k in BLAS_VARS})
+                env.update({k: value for k in BLAS_THREAD_VARIABLES})
             argv = [sys.executable, "-c", "from mocapzip.cli.main import main; main()", "compress",
                     str(data / "cmu" / "07"), "-o", str(Path(tmp) / f"{name[-3:]}.mcz"), "-q"]
             log(f"$ {f'OPENBLAS_NUM_THREADS={value} ' if value else ''}mcz compress $DATA/cmu/07 -o x.mcz -q")

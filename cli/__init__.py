@@ -9,7 +9,9 @@ default, set before numpy is first imported; an explicit environment setting win
 import os
 import sys
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+from mocapzip.defaults import BLAS_THREAD_VARIABLES
+
+for _var in BLAS_THREAD_VARIABLES:
     os.environ.setdefault(_var, "1")
 
 

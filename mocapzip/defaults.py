@@ -6,6 +6,8 @@
 MAX_TO_MEAN = 10.0
 # a clip's frame rate where nothing sets it (ASF/AMC have no field for one): CMU's and HDM05's
 DEFAULT_FPS = 120.0
+# the environment variables that set BLAS thread counts (OpenBLAS, OpenMP, MKL): mcz's processes want one
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 UNITS_CM = {"cm": 1.0, "mm": 0.1, "m": 100.0, "in": 2.54}  # BVH length units (`--units`) -> cm
 # memory (MB) for clips kept between compress's passes (`inputs.clip.ClipReader`): the shared CMU set
 # (143,495 frames) holds 535 MB; at 512 some of its clips were read again, 5 % of compress's time

@@ -33,8 +33,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from threadpoolctl import threadpool_limits
 
-
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+from mocapzip.defaults import BLAS_THREAD_VARIABLES
 
 
 def one_blas_thread(function: Callable) -> Callable:

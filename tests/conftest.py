@@ -5,9 +5,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from mocapzip.defaults import BLAS_THREAD_VARIABLES
+
 # One BLAS thread per process, set before numpy loads: the codec runs worker processes, and
 # on a 2-core machine threaded BLAS inside each made eigendecompositions about 8x slower.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+for _var in BLAS_THREAD_VARIABLES:
     os.environ.setdefault(_var, "1")
 
 import pytest

@@ -9,6 +9,8 @@ import resource
 import subprocess
 import sys
 
+from mocapzip.defaults import BLAS_THREAD_VARIABLES
+
 MEMORY_LIMIT = 2 << 30  # bytes of address space per child
 TIMEOUT = 60.0  # seconds
 
@@ -19,6 +21,6 @@ def run_mcz(*args, cwd=None, memory: int = MEMORY_LIMIT) -> subprocess.Completed
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
 
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    env = {**os.environ, **dict.fromkeys(BLAS_THREAD_VARIABLES, "1")}
     return subprocess.run([sys.executable, "-c", "from mocapzip.cli.main import main; main()", *map(os.fspath, args)],
                           cwd=cwd, capture_output=True, text=True, timeout=TIMEOUT, preexec_fn=limit, env=env)

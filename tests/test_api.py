@@ -131,7 +131,7 @@ def test_compress_runs_on_one_blas_thread_in_every_process_and_gives_the_caller_
     from threadpoolctl import threadpool_info, threadpool_limits
 
     from mocapzip.inputs.clip import LoadedClip
-    from mocapzip.parallel import BLAS_THREAD_VARIABLES
+    from mocapzip.defaults import BLAS_THREAD_VARIABLES
 
     def blas_threads() -> int:
         return max((lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"), default=0)

@@ -64,7 +64,7 @@ import numpy as np
 from mocapzip import __version__
 from mocapzip.classes.by_name import read_class_table
 from mocapzip.cli.choices import contact_error_cm, max_error_cm
-from mocapzip.defaults import DEFAULT_FPS
+from mocapzip.defaults import BLAS_THREAD_VARIABLES, DEFAULT_FPS
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import ClipSource, find_clips, no_clips
 from mocapzip.progress import progress
@@ -842,7 +842,7 @@ def _environment(load_start) -> dict:
             "platform": platform.platform(), "cpus": os.cpu_count(),
             "load_average_start": list(load_start) if load_start else None,
             "load_average_end": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-            "blas_threads": {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}}
+            "blas_threads": {k: os.environ.get(k) for k in BLAS_THREAD_VARIABLES}}
 
 
 def command_line(options: BenchOptions) -> str:
