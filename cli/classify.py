@@ -162,6 +162,6 @@ def classify(labels, train_inputs, test_inputs, representation, threshold, varia
                    + "  ".join(f"{c['share'][n]:>9.2f}%" for n in names) + f"  {c['best']}")
     if "table" in report:
         click.echo("")
-        click.echo(format_table(report, f"% of test poses above the threshold (columns: test clips by class)"))
+        click.echo(format_table(report, "% of test poses above the threshold (columns: test clips by class)"))
         click.echo(f"best class (most pose votes): {report['pose_accuracy']:.1f} % of poses, "
                    f"{report['clip_accuracy']:.1f} % of clips correct")

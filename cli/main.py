@@ -142,7 +142,7 @@ def _not_stdout(ctx, param, value):
 
 
 # Options that only tune the lossy codec: given with --lossless they would be silently ignored.
-LOSSY_ONLY = ("error_cm", "max_error", "contact_error", "plant_feet", "repair_glitches", "representation", "transform", "wavelet", "level", "split", "segment")
+LOSSY_ONLY = ("error_cm", "max_error", "contact_error", "plant_feet", "repair_glitches", "representation", "transform", "wavelet", "level", "knot_spacing", "split", "segment")
 
 
 def _refuse_lossy_options(ctx: click.Context) -> None:
@@ -182,13 +182,19 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
                    "and --contact-error, and `mcz info` lists each repaired range with its error against the source.")
 @click.option("--lossless", is_flag=True,
               help="Every AMC value comes back as written; refuses the lossy-only options "
-                   "-e, --max-error, --contact-error, --plant-feet, --repair-glitches, -r, -t, --wavelet, --level, --split and --segment.")
+                   "-e, --max-error, --contact-error, --plant-feet, --repair-glitches, -r, -t, --wavelet, --level, --knot-spacing, "
+                   "--split and --segment.")
 @click.option("-r", "--representation", type=click.Choice(REPRESENTATIONS),
               default="aligned", show_default=True, help="What the codec compresses (thesis section 3.2.1).")
 @click.option("-t", "--transform", type=click.Choice(TRANSFORMS), default="dct", show_default=True,
-              help="Temporal transform of the PCA curves.")
+              help="Temporal transform of the PCA curves: dct (the smallest on every set measured), dwt "
+                   "(wavelets), poly (polynomials fitted piece by piece, 16 % larger than dct on CMU: "
+                   "docs/seed_methods.md) or identity (none).")
 @click.option("--wavelet", default="db4", show_default=True, help="PyWavelets wavelet name for --transform dwt.")
 @click.option("--level", type=click.IntRange(min=1, max=32), default=None, help="DWT levels (default: as many as the clip allows).")
+@click.option("--knot-spacing", type=click.IntRange(min=1, max=512), default=None, metavar="FRAMES",
+              help="Frames between the knots of --transform poly, which fits polynomials to each PCA curve piece by "
+                   "piece (default 120).")
 @click.option("-c", "--classes", default="pooled", show_default=True,
               help="Clips sharing one PCA basis: pooled (one per skeleton, but skeletons with under 4,000 frames "
                    "share one: a basis costs a few KB), subject (one per skeleton), single, FILE.csv (clip path, "
@@ -219,8 +225,8 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
-def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, repair_glitches, lossless, representation, transform, wavelet, level, classes, segment, split,
-             asf, fps, units, jobs, cache_mb, force, skip_bad, quiet, as_json):
+def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, repair_glitches, lossless, representation, transform, wavelet, level, knot_spacing, classes,
+             segment, split, asf, fps, units, jobs, cache_mb, force, skip_bad, quiet, as_json):
     """Compress the AMC and BVH clips under INPUTS (folders, searched recursively, or files) into one archive.
 
     Each AMC pairs with the ASF in its folder (or --asf): copies of one skeleton count as one, and
@@ -248,6 +254,10 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
     transform_config = {"id": transform}
     if transform == "dwt":
         transform_config.update(wavelet=wavelet, level=level)
+    if knot_spacing is not None:
+        if transform != "poly":
+            raise click.UsageError(f"--knot-spacing is for --transform poly, not {transform}")
+        transform_config.update(knot_spacing=knot_spacing)
     bound = None if lossless else max_error_cm(max_error, error_cm)
     contact = None if lossless else contact_error_cm(contact_error)
     settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, contact_error_cm=contact,

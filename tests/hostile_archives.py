@@ -218,6 +218,8 @@ def cases(watched: Path) -> list[Case]:
         ("transform_none", _set("settings.transform", {"id": "none"}), "meta: settings.transform"),
         ("wavelet_unknown", _set("settings.transform", {"id": "dwt", "wavelet": "evil", "level": None}),
          "meta: settings.transform.wavelet"),
+        ("knot_spacing_huge", _set("settings.transform", {"id": "poly", "knot_spacing": 1 << 30}),
+         "meta: settings.transform"),
         ("representation_unknown", _set("settings.representation", "quaternions"), "meta: settings.representation"),
         ("error_negative", _set("settings.error_cm", -1), "meta: settings.error_cm"),
         ("class_99", _set("clips.0.class", 99), "meta: clips[0].class"),

@@ -139,6 +139,25 @@ def test_dwt_and_forced_split(small_set, tmp_path):
     assert summary["worst_error_cm"] <= 1.0
 
 
+def test_poly_transform_round_trips_within_target(small_set, tmp_path):
+    """-t poly (piecewise polynomials of the PCA curves, seed 003): every clip within -e,
+    measured on the decompressed files; the archive names the knot spacing it was coded with."""
+    archive = tmp_path / "db.mcz"
+    result = run("compress", small_set, "-o", archive, "-e", 1, "-t", "poly", "--knot-spacing", 90, "-q", "-j", "1")
+    assert result.exit_code == 0, result.output
+    assert run("decompress", archive, "-o", tmp_path / "out", "-q").exit_code == 0
+    measured = clip_errors(small_set, tmp_path / "out", ["07/07_01.amc", "09/09_01.amc", "09/09_05.amc"])
+    assert all(0 < e <= 1.0 for e in measured.values()), measured
+    info = json.loads(run("info", archive, "--json").output)
+    assert info["settings"]["transform"] == {"id": "poly", "knot_spacing": 90}
+
+
+def test_knot_spacing_is_refused_without_poly(small_set, tmp_path):
+    result = run("compress", small_set, "-o", tmp_path / "db.mcz", "--knot-spacing", 60)
+    assert result.exit_code == 2 and "--knot-spacing is for --transform poly" in result.output
+    assert not (tmp_path / "db.mcz").exists()
+
+
 def test_lossless_cli_is_exact_on_odd_exporters(shared_data, tmp_path):
     """Vicon Blade writes fixed 6 decimals; cmu-edited files have no headers or final newline."""
     out = tmp_path / "out"

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from mocapzip.stages import get_stage
-from mocapzip.codec.temporal import DctTransform, DwtTransform, IdentityTransform
+from mocapzip.codec.temporal import (DctTransform, DwtTransform, IdentityTransform, PolyTransform, gram_polynomials,
+                                     segment_bounds)
 
 SIZES = [1, 2, 3, 7, 64, 100, 1000, 4097]
 DTYPES = [np.float32, np.float64]
@@ -15,7 +16,8 @@ TOLERANCE = {np.float32: 1e-5, np.float64: 1e-12}
 
 
 def transforms():
-    return [DctTransform(), IdentityTransform()] + [DwtTransform(name) for name in WAVELETS]
+    return ([DctTransform(), IdentityTransform(), PolyTransform(), PolyTransform(knot_spacing=16)]
+            + [DwtTransform(name) for name in WAVELETS])
 
 
 def curves(n_frames, dtype, n_curves=3, seed=0):
@@ -117,6 +119,50 @@ def test_invalid_parameters():
         DwtTransform("not-a-wavelet")
     with pytest.raises(ValueError):
         DwtTransform("db4", level=-1)
+    for spacing in (0, 513, 1.5, True, "120"):  # 512 bounds a segment's matrix: an archive cannot ask for more
+        with pytest.raises(ValueError):
+            PolyTransform(knot_spacing=spacing)
+
+
+@pytest.mark.parametrize("n_points", [1, 2, 5, 64, 181, 768])
+def test_gram_polynomials_are_orthonormal_polynomials_by_degree(n_points):
+    """Column k is the degree-k polynomial over the points, orthonormal, leading coefficient
+    positive: the columns up to k span exactly the polynomials of degree k or less."""
+    q = gram_polynomials(n_points)
+    np.testing.assert_allclose(q.T @ q, np.eye(n_points), rtol=0, atol=1e-12)
+    t = np.linspace(-1.0, 1.0, n_points) if n_points > 1 else np.zeros(1)
+    for degree in range(min(n_points, 12)):
+        fit = np.polynomial.Polynomial.fit(t, q[:, degree], degree, domain=[-1, 1])
+        np.testing.assert_allclose(fit(t), q[:, degree], rtol=0, atol=1e-10)
+        if degree:
+            assert fit.coef[degree] > 0  # the sign convention a decoder reproduces
+            lower = np.polynomial.Polynomial.fit(t, q[:, degree], degree - 1, domain=[-1, 1])
+            assert np.abs(lower(t) - q[:, degree]).max() > 1e-3  # of degree k, not less
+
+
+@pytest.mark.parametrize("n_frames", [1, 59, 60, 61, 179, 180, 1000, 4097])
+def test_poly_knots_cover_the_frames_in_near_equal_segments(n_frames):
+    bounds = segment_bounds(n_frames, 120)
+    lengths = np.diff(bounds)
+    assert bounds[0] == 0 and bounds[-1] == n_frames and len(lengths) == max(1, round(n_frames / 120))
+    assert lengths.max() - lengths.min() <= 1 and lengths.max() <= 1.5 * 120 + 1
+
+
+def test_poly_band_is_a_least_squares_polynomial_fit_per_segment():
+    """Keeping the first rows (the band) keeps the same low degrees in every segment: the
+    decoded curve is each segment's least-squares polynomial of that degree."""
+    x = curves(310, np.float64, n_curves=2, seed=3)
+    transform = PolyTransform(knot_spacing=100)
+    bounds = segment_bounds(310, 100)
+    degree = 2
+    kept = transform.forward(x)
+    kept[(degree + 1) * (len(bounds) - 1):] = 0.0
+    smoothed = transform.inverse(kept, 310)
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        t = np.arange(hi - lo)
+        for column in range(2):
+            fit = np.polynomial.Polynomial.fit(t, x[lo:hi, column], degree)
+            np.testing.assert_allclose(smoothed[lo:hi, column], fit(t), rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("n_frames", SIZES)

@@ -43,6 +43,7 @@ FRESH = {
     "aligned-lossless": ["--lossless"],
     "scaled-dct": ["-r", "scaled", "-e", "1"],
     "normalised-dwt": ["-r", "normalised", "-t", "dwt", "-e", "1"],
+    "aligned-poly": ["-t", "poly", "--knot-spacing", "60", "-e", "1"],
     "segmented-auto-classes": ["--segment", "-c", "auto:2", "-e", "1"],
     "max-error": ["-e", "1", "--max-error", "3"],
     "segmented-max-error": ["--segment", "-e", "1", "--max-error", "4"],

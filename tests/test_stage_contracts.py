@@ -29,7 +29,9 @@ from mocapzip.stages import KINDS, get_stage, stage_classes, stage_ids
 # An entry whose id is no longer registered fails `test_example_configs_name_registered_stages`.
 EXAMPLE_CONFIGS = {
     "transform": [{"id": "dwt", "wavelet": "haar", "level": 2}, {"id": "dwt", "wavelet": "bior2.2", "level": None},
-                  {"id": "dwt", "wavelet": "sym5", "level": 0}, {"id": "dwt", "wavelet": "coif2", "level": 40}],
+                  {"id": "dwt", "wavelet": "sym5", "level": 0}, {"id": "dwt", "wavelet": "coif2", "level": 40},
+                  {"id": "poly", "knot_spacing": 1}, {"id": "poly", "knot_spacing": 7},
+                  {"id": "poly", "knot_spacing": 512}],
     "quantiser": [{"id": "uniform", "step": 0.25, "dead_zone": 0.125}, {"id": "uniform", "step": 1e-3, "dead_zone": 0.0},
                   {"id": "uniform", "step": 7.5, "dead_zone": 0.45}],
 }

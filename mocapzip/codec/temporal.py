@@ -7,12 +7,14 @@ a coefficient index always fits a fixed-size integer and a coefficient
 matrix has the same shape as the curves.
 
 Which transforms are orthonormal (``orthonormal`` attribute): DCT, identity,
-and DWT with an orthogonal wavelet (haar, dbN, symN, coifN).  For those,
+piecewise polynomials, and DWT with an orthogonal wavelet (haar, dbN, symN, coifN).  For those,
 the squared error of the coefficients equals the squared error of the
 reconstructed curves, so a quantisation error budget can be set directly in
 coefficient space.  Biorthogonal wavelets (biorX.Y, rbioX.Y) reconstruct
 perfectly but do not preserve energy.
 """
+
+import functools
 
 import numpy as np
 import pywt
@@ -20,7 +22,7 @@ import scipy.fft
 
 from mocapzip.stages import Stage, register
 
-__all__ = ["DctTransform", "DwtTransform", "IdentityTransform"]
+__all__ = ["DctTransform", "DwtTransform", "IdentityTransform", "PolyTransform"]
 
 
 @register
@@ -130,6 +132,94 @@ class IdentityTransform(Stage):
     def inverse(self, coefs, n_frames: int) -> np.ndarray:
         return _check_length(coefs, n_frames).copy()
 
+
+
+MAX_KNOT_SPACING = 512  # frames: a segment's polynomials are an (L, L) matrix, L up to 1.5 x this
+
+@register
+class PolyTransform(Stage):
+    """Piecewise polynomial fits of each curve (the 2003 page's method, seed 003): the frames
+    are cut into segments of about `knot_spacing` frames, and each segment's curve is expressed in
+    the orthonormal polynomials of its frames (Gram polynomials: degree 0, 1, ... up to one less
+    than the segment's length, so exactly T coefficients, perfect reconstruction).
+
+    Coefficients are laid out by degree, then by segment: every segment's constant term first,
+    then every segment's slope, and so on. A band that keeps the first rows therefore keeps
+    the same low degrees in every segment: it is the low-pass smoothing, and keeping the first
+    rows is a least-squares polynomial fit of that degree per segment. The quantiser zeroes the
+    higher terms a segment does not need, which is its degree chosen per segment. The knots are
+    uniform, found from T and `knot_spacing` alone (`segment_bounds`), so none is stored.
+    """
+
+    kind = "transform"
+    codec_id = "poly"
+    orthonormal = True
+    param_schema = {"knot_spacing": {"type": "integer", "minimum": 1, "maximum": MAX_KNOT_SPACING}}
+
+    def __init__(self, knot_spacing: int = 120):
+        if isinstance(knot_spacing, bool) or not isinstance(knot_spacing, int) \
+                or not 1 <= knot_spacing <= MAX_KNOT_SPACING:
+            raise ValueError(f"knot_spacing must be an integer from 1 to {MAX_KNOT_SPACING} frames, "
+                             f"got {knot_spacing!r}")
+        self.knot_spacing = knot_spacing
+
+    def params(self) -> dict:
+        return {"knot_spacing": self.knot_spacing}
+
+    def forward(self, curves) -> np.ndarray:
+        curves = np.asarray(curves)
+        by_segment = np.empty_like(curves)
+        bounds = segment_bounds(curves.shape[0], self.knot_spacing)
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            by_segment[lo:hi] = (gram_polynomials(hi - lo).T @ curves[lo:hi]).astype(curves.dtype, copy=False)
+        return by_segment[degree_order(bounds)]
+
+    def inverse(self, coefs, n_frames: int) -> np.ndarray:
+        coefs = _check_length(coefs, n_frames)
+        bounds = segment_bounds(n_frames, self.knot_spacing)
+        by_segment = np.empty_like(coefs)
+        by_segment[degree_order(bounds)] = coefs
+        curves = np.empty_like(coefs)
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            curves[lo:hi] = (gram_polynomials(hi - lo) @ by_segment[lo:hi]).astype(coefs.dtype, copy=False)
+        return curves
+
+
+def segment_bounds(n_frames: int, spacing: int) -> list[int]:
+    """The knots of `PolyTransform`: n = round(T / spacing) segments (at least one), as equal as
+    integers allow, segment i being frames [i T // n, (i + 1) T // n); so none is longer than
+    1.5 x spacing + 1 frames, which bounds `gram_polynomials`."""
+    count = max(1, (n_frames + spacing // 2) // spacing)
+    return [i * n_frames // count for i in range(count + 1)]
+
+
+def degree_order(bounds: list[int]) -> np.ndarray:
+    """Row r of the coefficients, by degree then segment, is row `order[r]` of the segments'
+    coefficients stacked segment after segment (each segment's own in degree order)."""
+    starts = np.repeat(bounds[:-1], np.diff(bounds))
+    degree = np.arange(bounds[-1]) - starts
+    return np.lexsort((starts, degree))
+
+
+@functools.lru_cache(maxsize=32)
+def gram_polynomials(n: int) -> np.ndarray:
+    """(n, n): column k is the degree-k polynomial orthonormal over n equally spaced points
+    t_i = (2i - (n - 1)) / (n - 1), with a positive leading coefficient (t = 0 for n = 1).
+
+    Built by the Stieltjes procedure: column k is t times column k - 1, orthogonalised against
+    the columns before it twice (classical Gram-Schmidt run twice is orthogonal to rounding),
+    then normalised. A fit through a Vandermonde matrix would lose the high degrees to its
+    conditioning."""
+    t = (2.0 * np.arange(n) - (n - 1)) / max(n - 1, 1)
+    q = np.empty((n, n))
+    q[:, 0] = 1.0 / np.sqrt(n)
+    for k in range(1, n):
+        v = t * q[:, k - 1]
+        for _ in range(2):
+            v = v - q[:, :k] @ (q[:, :k].T @ v)
+        q[:, k] = v / np.linalg.norm(v)
+    q.flags.writeable = False
+    return q
 
 
 def _check_length(coefs, n_frames: int) -> np.ndarray:

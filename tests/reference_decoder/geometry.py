@@ -136,7 +136,41 @@ def inverse_transform(coef, transform):
         if level is None:
             level = max_level(coef.shape[0], taps)
         return inverse_dwt(coef, int(level), lo, hi)
+    if kind == "poly":
+        return inverse_poly(coef, int(transform["knot_spacing"]))
     raise ValueError(f"unknown transform {kind!r}")
+
+
+def inverse_poly(c, spacing):
+    """§1 poly: per segment, its Gram polynomials times its coefficients (listed by degree, then segment)."""
+    n = c.shape[0]
+    g = max(1, (n + spacing // 2) // spacing)
+    bounds = [s * n // g for s in range(g + 1)]
+    lengths = [bounds[s + 1] - bounds[s] for s in range(g)]
+    per_segment = [[] for _ in range(g)]
+    row = 0
+    for d in range(max(lengths)):
+        for s in range(g):
+            if d < lengths[s]:
+                per_segment[s].append(c[row])
+                row += 1
+    out = np.empty_like(c, dtype=np.float64)
+    for s in range(g):
+        out[bounds[s]:bounds[s + 1]] = gram(lengths[s]) @ np.array(per_segment[s])
+    return out
+
+
+def gram(size):
+    """§1 poly: column k, the degree-k polynomial orthonormal over t_i = (2i - (L-1)) / (L-1)."""
+    t = np.array([(2 * i - (size - 1)) / (size - 1) for i in range(size)]) if size > 1 else np.zeros(1)
+    columns = [np.full(size, 1.0 / np.sqrt(size))]
+    for _ in range(1, size):
+        v = t * columns[-1]
+        for _ in range(2):
+            done = np.array(columns).T
+            v = v - done @ (done.T @ v)
+        columns.append(v / np.sqrt(np.sum(v * v)))
+    return np.array(columns).T
 
 
 def max_level(n, taps):
