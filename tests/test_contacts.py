@@ -7,7 +7,8 @@ import pytest
 
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.asf import read_asf
-from mocapzip.motion.contacts import CONTACT_SPEED_CM_S, contacts, foot_joints, foot_skate, horizontal_speed
+from mocapzip.motion.contacts import (CONTACT_SPEED_CM_S, contacts, foot_joints, foot_skate, foot_strikes,
+                                      horizontal_speed)
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
 
@@ -46,3 +47,15 @@ def test_foot_skate_is_the_extra_slide_of_planted_feet(walk):
     skate = foot_skate(positions, sliding, planted, 120.0)
     assert 0 < skate <= 12.0 + 1e-9
     assert foot_skate(positions, sliding, np.zeros_like(planted), 120.0) == 0.0
+
+
+@pytest.mark.parametrize("actor", ["bd", "bk", "dg"])
+def test_strikes_of_a_jog_of_four_steps_alternate_from_the_right_foot(shared_data, actor):
+    """HDM05's jogLeftCircle4StepsRstart: four steps, right foot first, each foot in turn."""
+    path = next((shared_data / "hdm05" / actor).glob("*jogLeftCircle4StepsRstart*"))
+    skeleton = read_asf(next(path.parent.glob("*.asf")))
+    model = SkeletonModel.from_asf(skeleton)
+    motion = read_amc(path, skeleton)
+    strikes = foot_strikes(model, forward(model, motion.values, motion).positions, 120.0)
+    order = [side for _, side in sorted((frame, side) for side, frames in strikes.items() for frame in frames)]
+    assert order == ["r", "l", "r", "l"]

@@ -47,6 +47,28 @@ def contacts(model: SkeletonModel, positions: np.ndarray, fps: float) -> np.ndar
     return planted
 
 
+STEP_FRAMES = 10  # foot_strikes: contact runs, and the gaps between them, shorter than this are smoothed over
+
+
+def foot_strikes(model: SkeletonModel, positions: np.ndarray, fps: float) -> dict[str, list[int]]:
+    """{"l": frames, "r": frames} where each foot comes down: the starts of its contact runs (any of
+    its foot joints planted; a joint's side from its name: lfoot, Foot_L, LeftFoot), after gaps and
+    runs under STEP_FRAMES are smoothed over. A run from the first frame is no strike."""
+    planted = contacts(model, positions, fps)
+    found = {}
+    for side, pattern in (("l", r"^l|_l$|^left"), ("r", r"^r|_r$|^right")):
+        joints = [j for j in foot_joints(model) if re.search(pattern, model.names[j].lower())]
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], planted[:, joints].any(axis=1), [0]]).astype(int)))
+        runs: list[list[int]] = []
+        for first, end in zip(edges[::2], edges[1::2]):
+            if runs and first - runs[-1][1] < STEP_FRAMES:
+                runs[-1][1] = end
+            else:
+                runs.append([first, end])
+        found[side] = [int(first) for first, end in runs if end - first >= STEP_FRAMES and first > 0]
+    return found
+
+
 def foot_skate(original: np.ndarray, decoded: np.ndarray, planted: np.ndarray, fps: float) -> float:
     """Mean over the planted foot joints and frames of the decoded clip's speed across the floor
     minus the source's (cm/s): how much more a planted foot slides once decoded (0 with none)."""
