@@ -2,7 +2,9 @@
 
 Workers are forked, so they inherit what the parent holds when the pool starts (clips kept
 in memory, an opened archive, what a module put in its `_SHARED` for them) instead of
-receiving it pickled: only each item and its result cross between processes. Where fork is
+receiving it pickled: only each item and its result cross between processes. Inside a
+`kept_workers` block (the encoder's classes) one pool serves every map, and each map's
+`_SHARED`, small there, is pickled to its workers once. Where fork is
 not available, or one job is asked for, the work runs in the calling process, one item after
 the other, exactly as the workers would do it.
 
@@ -22,14 +24,19 @@ import functools
 import itertools
 import multiprocessing
 import os
+import pickle
+import shutil
 import signal
+import sys
+import tempfile
 import threading
 import time
 import traceback
 import warnings
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, wait
+from contextlib import contextmanager
 
 from threadpoolctl import threadpool_limits
 
@@ -61,15 +68,102 @@ def parallel_map(function: Callable, items, jobs: int) -> list:
 
     The first time a function is mapped, its first item runs here, before the fork: numba then
     loads the compiled kernels it uses once, and the workers of every later pool have them (each
-    would otherwise load them again from the cache, about a second per worker and pool; the
-    encoder starts three pools per class).
+    would otherwise load them again from the cache, about a second per worker and pool). Inside
+    `kept_workers`, the block's workers do the work.
     """
     items = list(items)
     done = []
     if jobs > 1 and len(items) > 1 and function not in _RUN_HERE:
         _RUN_HERE.add(function)
         done, items = [function(items[0])], items[1:]
+    if _KEPT and jobs > 1 and len(items) > 1:
+        return done + _KEPT[-1].map(function, items)
     return done + list(imap(function, items, jobs))
+
+
+_KEPT: list = []  # the workers of the innermost `kept_workers` block, if any
+
+
+@contextmanager
+def kept_workers(jobs: int):
+    """Within the block, `parallel_map` hands its items to one set of `jobs` forked workers, kept
+    from map to map, instead of forking a pool for each map.
+
+    A run that maps many times (the encoder: three maps per class) otherwise pays each pool's fork
+    and shutdown, and each new worker's page faults as it warms a fresh heap: on the shared CMU
+    set, 33 pools. The workers fork at the block's first map, so they inherit what the process
+    holds then (clips kept in memory). What changes from map to map, the mapped function's module's
+    `_SHARED`, reaches them pickled, through a file each worker reads once per map: it must pickle
+    small (clips indexed through a module-level loader, never held in it)."""
+    if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        yield
+        return
+    kept = _Kept(jobs)
+    _KEPT.append(kept)
+    try:
+        yield
+    finally:
+        _KEPT.pop()
+        kept.close()
+
+
+class _Kept:
+    """`kept_workers`' pool, and the folder of the state files its maps send."""
+
+    def __init__(self, jobs: int):
+        self.jobs, self.pool, self.maps = jobs, None, 0
+        self.others = set(multiprocessing.active_children())
+        self.folder = tempfile.mkdtemp(prefix="mcz-shared-")
+
+    def map(self, function: Callable, items: list) -> list:
+        """`[function(item) for item in items]` in the kept workers, with `imap`'s warnings and first error."""
+        module = function.__module__
+        self.maps += 1
+        state = os.path.join(self.folder, f"{self.maps}.pickle")
+        with open(state, "wb") as file:
+            pickle.dump(sys.modules[module]._SHARED, file, protocol=pickle.HIGHEST_PROTOCOL)
+        if self.pool is None:
+            self.pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("fork"),
+                                            initializer=_worker_start, initargs=(os.getpid(),))
+        futures = [self.pool.submit(_call_with_state, module, state, function, item) for item in items]
+        try:
+            results = []
+            for future in futures:
+                caught, result, error = future.result()
+                for message, category, filename, lineno in caught:
+                    warnings.warn_explicit(message, category, filename, lineno)
+                if error is not None:
+                    raise error[0] from _RemoteTraceback(error[1])
+                results.append(result)
+            return results
+        finally:  # nothing of this map left running behind it
+            for future in futures:
+                future.cancel()
+            wait(futures)
+            os.remove(state)
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            for process in set(multiprocessing.active_children()) - self.others:  # as `imap`
+                process.kill()
+                process.join()
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+_INSTALLED: dict = {}  # in a kept worker: module name -> the state file last put in its `_SHARED`
+
+
+def _call_with_state(module: str, state: str, function: Callable, item):
+    """In a kept worker: the map's `_SHARED` installed (read once per map), then `_call`."""
+    if _INSTALLED.get(module) != state:
+        with open(state, "rb") as file:
+            shared = pickle.load(file)
+        target = sys.modules[module]._SHARED
+        target.clear()
+        target.update(shared)
+        _INSTALLED[module] = state
+    return _call(function, item)
 
 
 def imap(function: Callable, items: Sequence, jobs: int, window: int | None = None) -> Iterator:

@@ -24,7 +24,7 @@ from mocapzip.archive.writer import _serialise_clips
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveReader
-from mocapzip.parallel import imap, parallel_map
+from mocapzip.parallel import imap, kept_workers, parallel_map
 from mocapzip.progress import progress
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -98,6 +98,52 @@ def test_stopping_early_cancels_what_has_not_started(tmp_path):
     results.close()  # waits for the items the workers hold, cancels the others
     assert len(os.listdir(tmp_path)) <= 2 + window
     assert multiprocessing.active_children() == []
+
+
+_SHARED: dict = {}  # what `kept_workers` sends the workers of the maps below
+
+
+def _scaled(i: int) -> tuple[int, int]:
+    """(the map's factor times i, the worker's pid), with a warning: the factor comes from `_SHARED`."""
+    warnings.warn(f"item {i}")
+    return _SHARED["factor"] * i, os.getpid()
+
+
+def _scaled_or_failing(i: int) -> int:
+    if i == _SHARED["bad"]:
+        raise MocapFormatError(f"item {i} is bad", "some/file.amc", 7)
+    return i
+
+
+def test_kept_workers_serve_every_map_with_its_own_shared_state():
+    """One set of workers for all the maps of a block, each map seeing the `_SHARED` it was made
+    with; results and warnings in item order; nothing left running after the block."""
+    pids = set()
+    with kept_workers(2):
+        for factor in (3, 5, 7):
+            _SHARED["factor"] = factor
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                results = parallel_map(_scaled, range(9), 2)
+            assert [value for value, _ in results] == [factor * i for i in range(9)]
+            assert [str(w.message) for w in caught] == [f"item {i}" for i in range(9)]
+            pids |= {pid for _, pid in results[1:]}  # the first item of the first map runs here
+        assert len(multiprocessing.active_children()) == 2
+    assert os.getpid() not in pids and len(pids) <= 2  # two workers served all three maps
+    assert multiprocessing.active_children() == []
+    _SHARED.clear()
+
+
+def test_a_kept_worker_failure_raises_at_its_turn_and_the_block_ends_cleanly():
+    with pytest.raises(MocapFormatError) as failure:
+        with kept_workers(2):
+            _SHARED["bad"] = 99
+            assert parallel_map(_scaled_or_failing, range(8), 2) == list(range(8))
+            _SHARED["bad"] = 4
+            parallel_map(_scaled_or_failing, range(8), 2)
+    assert str(failure.value) == "some/file.amc:7: item 4 is bad"
+    assert multiprocessing.active_children() == []
+    _SHARED.clear()
 
 
 def test_progress_bars_start_no_thread_that_workers_would_fork_with():

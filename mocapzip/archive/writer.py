@@ -44,7 +44,7 @@ from mocapzip.inputs.discover import ClipSource, find_clips, no_clips, record_sk
 from mocapzip.defaults import DEFAULT_CACHE_MB, UNITS_CM
 from mocapzip.motion.bvh_skeleton import BvhSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
-from mocapzip.parallel import imap, one_blas_thread, parallel_map
+from mocapzip.parallel import imap, kept_workers, one_blas_thread, parallel_map
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
 from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved
@@ -450,25 +450,29 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
     members_of = [[u for u, c in enumerate(unit_class) if c == name] for name in class_names]
     frames = [sum(units[u].coded_frames for u in members) for members in members_of]
     # counted in frames, not classes: one subject is one class, and a bar at 0/1 tells nothing
-    with progress(total=sum(frames), desc="code", unit="frame") as bar:
-        for k, (name, members) in enumerate(zip(class_names, members_of)):
-            clips = ClipsOnDemand([units[u] for u in members], lambda unit: unit.load(reader))
-            basis, codings = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
-            writer.add(f"class/{k:04d}", basis.encode())
-            classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
-                                 "frames": frames[k]})
-            for u, coding in zip(members, codings):
-                unit = units[u]
-                if unit.coded is None:
-                    interim[f"clip/{unit.clip:05d}"] = coding.payload
-                    _store_achieved(scan.rows[unit.clip], unit.clip, coding.achieved, coding.patches, writer,
-                                    coding.stances)
-                    if coding.twists:
-                        scan.rows[unit.clip]["twist_flips"] = coding.twists
-                    reader.forget([unit.source])
-                else:
-                    segments[u] = (k, basis, coding.payload, (coding.achieved.mean, coding.achieved.max))
-            bar.update(frames[k])
+    _CODING["reader"] = reader  # the kept workers fork from the first class's first map
+    try:
+        with progress(total=sum(frames), desc="code", unit="frame") as bar, kept_workers(jobs):
+            for k, (name, members) in enumerate(zip(class_names, members_of)):
+                clips = ClipsOnDemand([units[u] for u in members], _load_unit)
+                basis, codings = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
+                writer.add(f"class/{k:04d}", basis.encode())
+                classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
+                                     "frames": frames[k]})
+                for u, coding in zip(members, codings):
+                    unit = units[u]
+                    if unit.coded is None:
+                        interim[f"clip/{unit.clip:05d}"] = coding.payload
+                        _store_achieved(scan.rows[unit.clip], unit.clip, coding.achieved, coding.patches, writer,
+                                        coding.stances)
+                        if coding.twists:
+                            scan.rows[unit.clip]["twist_flips"] = coding.twists
+                        reader.forget([unit.source])
+                    else:
+                        segments[u] = (k, basis, coding.payload, (coding.achieved.mean, coding.achieved.max))
+                bar.update(frames[k])
+    finally:
+        _CODING.clear()
     parts_of = defaultdict(list)  # clip index -> its segments' unit indices
     for u in segments:
         parts_of[units[u].clip].append(u)
@@ -480,6 +484,15 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
             interim[name] = payload
         reader.forget([scan.sources[i]])
     return classes_meta, interim
+
+
+_CODING: dict = {}  # the reader of the clips being coded, which the kept workers inherit (`_load_unit`)
+
+
+def _load_unit(unit: _Unit) -> LoadedClip:
+    """A class's clip, as `encode_class` indexes it here or in a kept worker: a module-level
+    function, so that the class's clips pickle as their units alone (`parallel.kept_workers`)."""
+    return unit.load(_CODING["reader"])
 
 
 def _rounded_up(cm: float) -> float:

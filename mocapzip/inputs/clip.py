@@ -325,7 +325,8 @@ class ClipReader:
 
 class ClipsOnDemand(Sequence):
     """A list of clips the codec can index, also in forked workers, whose clips are loaded
-    (`load(item)`, e.g. through a `ClipReader`) when indexed instead of held all at once."""
+    (`load(item)`, e.g. through a `ClipReader`) when indexed instead of held all at once. With
+    a module-level `load` it pickles as its items alone (`parallel.kept_workers`)."""
 
     def __init__(self, items: list, load: Callable[[object], LoadedClip]):
         self.items, self.load = items, load

@@ -82,7 +82,7 @@ class TargetError(MocapFormatError):
     """No coding of a clip meets the error target: the target is below the input's own precision."""
 
 
-_SHARED: dict = {}  # what forked workers read (clips are large: they are inherited, not pickled)
+_SHARED: dict = {}  # what the workers of a class's maps read (its clips by index: each loads them, never pickled)
 
 
 def encode_class(clips, transform, settings, jobs: int = 1, accumulator: CovarianceAccumulator | None = None):
