@@ -69,7 +69,8 @@ def parallel_map(function: Callable, items, jobs: int) -> list:
     The first time a function is mapped, its first item runs here, before the fork: numba then
     loads the compiled kernels it uses once, and the workers of every later pool have them (each
     would otherwise load them again from the cache, about a second per worker and pool). Inside
-    `kept_workers`, the block's workers do the work.
+    `kept_workers`, the block's workers do the work; they fork at its first map, so kernels first
+    used by a later function load once in each of them.
     """
     items = list(items)
     done = []

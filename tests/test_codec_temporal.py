@@ -172,3 +172,10 @@ def test_dct_synthesis_is_the_inverse_of_unit_coefficients(n_frames, frames):
     rows = min(n_frames, 40)
     expected = transform.inverse(np.eye(n_frames, rows), n_frames)[frames]
     np.testing.assert_allclose(transform.synthesis(n_frames, rows, frames), expected, rtol=0, atol=1e-14)
+
+
+def test_poly_takes_integer_curves_as_floats():
+    """Integers in (a test's, a user's): the coefficients are floats, not truncated to integers."""
+    x = np.arange(30).reshape(10, 3) ** 2
+    np.testing.assert_allclose(PolyTransform(knot_spacing=4).forward(x),
+                               PolyTransform(knot_spacing=4).forward(x.astype(np.float64)), rtol=0, atol=1e-12)

@@ -36,6 +36,8 @@ def test_every_family_has_its_segments_and_the_whole_mass(shared_data, family):
     assert len(segments.bones) == (15 if family in ("cmu", "hdm05") else 14)  # the ASFs have two neck bones
     named = [model.names[segments.bones[k]].lower() for k in segments.momentum]
     assert sum("hand" in n for n in named[:2]) == 2 and sum("foot" in n for n in named[2:]) == 2
+    lefts = [n.startswith("l") or n.endswith("_l") for n in named]
+    assert lefts == [True, False, True, False]  # left, then right: CMU's BVH lists the right first
     upper_arms = [model.names[j].lower() for j in segments.shoulders]
     assert all(any(word in n for word in ("humerus", "shldr", "upperarm")) for n in upper_arms)
 

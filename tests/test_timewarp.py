@@ -71,9 +71,13 @@ def test_levels_reach_about_4_hz():
 
 
 def test_bad_features_are_refused():
-    for bad in (np.zeros((0, 2, 3)), np.zeros((5, 3)), np.zeros((5, 2, 2))):
+    infinite, missing = features(5), features(5)
+    infinite[2, 1, 0], missing[3, 0, 2] = np.inf, np.nan
+    for bad in (np.zeros((0, 2, 3)), np.zeros((5, 3)), np.zeros((5, 2, 2)), infinite, missing):
         with pytest.raises(ValueError):
             dtw(bad, features(5))
+        with pytest.raises(ValueError):
+            multiscale_dtw(features(5), bad, 120.0)
 
 
 @pytest.mark.parametrize("motion", ["jogLeftCircle4StepsRstart", "sneak2StepsLStart"])

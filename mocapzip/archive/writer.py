@@ -457,8 +457,8 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
                 clips = ClipsOnDemand([units[u] for u in members], _load_unit)
                 basis, codings = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
                 writer.add(f"class/{k:04d}", basis.encode())
-                classes_meta.append({"name": name, "components": basis.q, "clips": len({units[u].clip for u in members}),
-                                     "frames": frames[k]})
+                classes_meta.append({"name": name, "components": basis.q,
+                                     "clips": len({units[u].clip for u in members}), "frames": frames[k]})
                 for u, coding in zip(members, codings):
                     unit = units[u]
                     if unit.coded is None:

@@ -168,10 +168,10 @@ class PolyTransform(Stage):
 
     def forward(self, curves) -> np.ndarray:
         curves = np.asarray(curves)
-        by_segment = np.empty_like(curves)
+        by_segment = np.empty(curves.shape, np.result_type(curves.dtype, np.float32))  # integers in: floats out
         bounds = segment_bounds(curves.shape[0], self.knot_spacing)
         for lo, hi in zip(bounds[:-1], bounds[1:]):
-            by_segment[lo:hi] = (gram_polynomials(hi - lo).T @ curves[lo:hi]).astype(curves.dtype, copy=False)
+            by_segment[lo:hi] = (gram_polynomials(hi - lo).T @ curves[lo:hi]).astype(by_segment.dtype, copy=False)
         return by_segment[degree_order(bounds)]
 
     def inverse(self, coefs, n_frames: int) -> np.ndarray:

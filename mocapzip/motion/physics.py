@@ -76,15 +76,23 @@ def body_segments(model: SkeletonModel) -> BodySegments:
         bones += kinds[kind]
         masses += list(mass * share)
         centres += [centre] * len(kinds[kind])
-    momentum = [bones.index(j) for kind in MOMENTUM_SEGMENTS for j in kinds[kind]]
+    momentum = [bones.index(j) for kind in MOMENTUM_SEGMENTS for j in _left_first(model, kinds[kind])]
     return BodySegments(np.array(bones), np.array(masses), np.array(centres), np.array(kinds["upper arm"]),
                         np.array(momentum))
 
 
+def _left_first(model: SkeletonModel, pair: list[int]) -> list[int]:
+    """A left and a right bone, the left first (lhand, Hand_L, LeftHand; CMU's BVH lists the right first)."""
+    left = [j for j in pair if re.search(r"^l|_l$|^left", model.names[j].lower())]
+    if len(left) != 1:
+        raise MocapFormatError(f"cannot tell left from right among {', '.join(model.names[j] for j in pair)}")
+    return left + [j for j in pair if j != left[0]]
+
+
 def physics_features(model: SkeletonModel, positions: np.ndarray, rotations: np.ndarray, fps: float,
                      segments: BodySegments | None = None) -> np.ndarray:
-    """(frames, 5, 3): the centre-of-mass acceleration (cm/s^2), then the angular momenta of the two
-    hands and the two feet about their proximal joints (share of body mass x cm^2/s), each in the
+    """(frames, 5, 3): the centre-of-mass acceleration (cm/s^2), then the angular momenta of the left
+    and right hands and the left and right feet about their proximal joints (share of body mass x cm^2/s), each in the
     body's heading frame: turned about +y by the root's heading, so that a walk goes the same
     whichever way it faces. `positions` and `rotations` are `kinematics.forward`'s (cm)."""
     segments = segments or body_segments(model)

@@ -60,6 +60,8 @@ def _checked(features) -> np.ndarray:
     features = np.ascontiguousarray(features, dtype=np.float64)
     if features.ndim != 3 or features.shape[2] != 3 or not len(features):
         raise ValueError(f"features must be (frames >= 1, K, 3), got {features.shape}")
+    if not np.isfinite(features).all():
+        raise ValueError("features must be finite (a NaN or an infinity has no direction to compare)")
     return features
 
 
@@ -176,5 +178,7 @@ def _dtw_band(a, b, lo, hi):
             best, bi, bj = total[start[i - 1] + j - lo[i - 1]], i - 1, j
         if j > lo[i] and total[start[i] + j - 1 - lo[i]] < best:
             best, bi, bj = total[start[i] + j - 1 - lo[i]], i, j - 1
+        if bi < 0:
+            raise ValueError("no warping path through the band")
         i, j = bi, bj
     return path[:length][::-1].copy(), total[start[n - 1] + m_last - lo[n - 1]], start[n]

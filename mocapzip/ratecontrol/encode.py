@@ -69,11 +69,11 @@ TOLERANCE_EXPONENT = 0.0  # seed 003's tolerances weighted by singular value (`c
 
 
 def component_weights(variances: np.ndarray) -> np.ndarray:
-    """(sigma_j / sigma_1) ** TOLERANCE_EXPONENT per component j. Its basis direction is stored
-    1 / w_j long, so its coefficients come out w_j times larger and one quantiser step on them is a
-    step 1 / w_j times coarser on the component: the 2003 page's looser fits for the components
-    of small singular values, with nothing new for a decoder to read."""
-    if TOLERANCE_EXPONENT == 0:
+    """w_j = (sigma_j / sigma_1) ** TOLERANCE_EXPONENT per component j. Its basis direction is
+    stored 1 / w_j long, so its coefficients are w_j times what they were and one quantiser step
+    on them is 1 / w_j steps on the component: for a positive exponent, the 2003 page's looser
+    fits of the components of small singular values, with nothing new for a decoder to read."""
+    if TOLERANCE_EXPONENT == 0 or not len(variances):
         return np.ones(len(variances))
     return (np.maximum(variances, 1e-30) / max(variances[0], 1e-30)) ** (TOLERANCE_EXPONENT / 2)
 
