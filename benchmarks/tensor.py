@@ -69,8 +69,8 @@ class WarpedClass:
         self.clips = [by_name[path.name] for path in paths]
         features = [self._features(clip) for clip in self.clips]
         longest = int(np.argmax([len(f) for f in features]))  # the reference: no clip loses frames to the warp
-        self.paths = [multiscale_dtw(features[longest], f, clip.fps).path for f, clip in zip(features, self.clips)]
-        warped = [self._to_reference(clip.poses, path) for clip, path in zip(self.clips, self.paths)]
+        self.warpings = [multiscale_dtw(features[longest], f, clip.fps) for f, clip in zip(features, self.clips)]
+        warped = [warping.carried(clip.poses, onto=0) for clip, warping in zip(self.clips, self.warpings)]
         self.mean = np.concatenate([clip.poses for clip in self.clips]).mean(axis=0)
         frames, width = warped[0].shape
         self.tensor = np.empty((frames, width, *(len(self.levels[m]) for m in self.modes)))
@@ -85,18 +85,6 @@ class WarpedClass:
     def _features(clip) -> np.ndarray:
         pose = forward(clip.model, clip.motion.values, clip.layout)
         return physics_features(clip.model, pose.positions, pose.rotations, clip.fps)
-
-    @staticmethod
-    def _to_reference(poses: np.ndarray, path: np.ndarray) -> np.ndarray:
-        counts = np.bincount(path[:, 0])
-        return np.stack([np.bincount(path[:, 0], weights=poses[path[:, 1], m]) / counts for m in range(poses.shape[1])],
-                        axis=1)
-
-    @staticmethod
-    def _to_own(warped: np.ndarray, path: np.ndarray) -> np.ndarray:
-        counts = np.bincount(path[:, 1])
-        return np.stack([np.bincount(path[:, 1], weights=warped[path[:, 0], m]) / counts for m in range(warped.shape[1])],
-                        axis=1)
 
     @staticmethod
     def _rotations(clip, values: np.ndarray) -> np.ndarray:
@@ -120,8 +108,8 @@ class WarpedClass:
 
     def tensor_errors(self, ranks) -> tuple[float, float]:
         model = reconstruct(*hooi(self.tensor, ranks)) if ranks != self.tensor.shape else self.tensor
-        return self.errors([self._to_own(model[(slice(None), slice(None), *self.at[k])] + self.mean, path)
-                            for k, path in enumerate(self.paths)])
+        return self.errors([warping.carried(model[(slice(None), slice(None), *self.at[k])] + self.mean, onto=1)
+                            for k, warping in enumerate(self.warpings)])
 
     def pca_errors(self, components: int) -> tuple[float, float]:
         stacked = np.concatenate([clip.poses for clip in self.clips]) - self.mean

@@ -51,9 +51,8 @@ def loaded(path: Path) -> tuple[np.ndarray, dict[str, list[int]]]:
 def same_foot(reference, take, features) -> tuple[int, int, float]:
     """(steps on the same foot, steps, mean distance in frames to the matched step)."""
     (ref_features, ref_steps), (take_features, take_steps) = reference, take
-    path = multiscale_dtw(ref_features[:, features], take_features[:, features], FPS).path
-    in_reference = (np.bincount(path[:, 1], weights=path[:, 0], minlength=len(take_features))
-                    / np.bincount(path[:, 1], minlength=len(take_features)))
+    warping = multiscale_dtw(ref_features[:, features], take_features[:, features], FPS)
+    in_reference = warping.carried(np.arange(len(ref_features)), onto=1)
     matched, distances = 0, []
     for side, frames in take_steps.items():
         for frame in frames:

@@ -128,15 +128,7 @@ class _Kept:
                                             initializer=_worker_start, initargs=(os.getpid(),))
         futures = [self.pool.submit(_call_with_state, module, state, function, item) for item in items]
         try:
-            results = []
-            for future in futures:
-                caught, result, error = future.result()
-                for message, category, filename, lineno in caught:
-                    warnings.warn_explicit(message, category, filename, lineno)
-                if error is not None:
-                    raise error[0] from _RemoteTraceback(error[1])
-                results.append(result)
-            return results
+            return [_result(future) for future in futures]
         finally:  # nothing of this map left running behind it
             for future in futures:
                 future.cancel()
@@ -145,10 +137,7 @@ class _Kept:
 
     def close(self) -> None:
         if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
-            for process in set(multiprocessing.active_children()) - self.others:  # as `imap`
-                process.kill()
-                process.join()
+            _shut(self.pool, self.others)
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
@@ -197,23 +186,36 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
 
         submit()
         while pending:
-            caught, result, error = pending.popleft().result()
-            for message, category, filename, lineno in caught:  # as one process raises them, at the item's turn
-                warnings.warn_explicit(message, category, filename, lineno)
-            if error is not None:
-                raise error[0] from _RemoteTraceback(error[1])
+            result = _result(pending.popleft())
             submit()
             yield result
     finally:
         for future in pending:
             future.cancel()
-        pool.shutdown(wait=True, cancel_futures=True)
-        # A pool that failed to start all its workers (fork refused: EAGAIN, ENOMEM) has no thread
-        # to stop those it started, and the interpreter would wait for them at exit forever. They
-        # hold nothing to clean up; one may not yet have left the parent's SIGTERM handler.
-        for process in set(multiprocessing.active_children()) - others:
-            process.kill()
-            process.join()
+        _shut(pool, others)
+
+
+def _result(future):
+    """A worker's result, its warnings given here first (as one process raises them, at the item's
+    turn), or the exception it raised, with the worker's traceback as its cause."""
+    caught, result, error = future.result()
+    for message, category, filename, lineno in caught:
+        warnings.warn_explicit(message, category, filename, lineno)
+    if error is not None:
+        raise error[0] from _RemoteTraceback(error[1])
+    return result
+
+
+def _shut(pool: ProcessPoolExecutor, others: set) -> None:
+    """Stop `pool`: the items not started cancelled, the running ones finished. A pool that failed
+    to start all its workers (fork refused: EAGAIN, ENOMEM) has no thread to stop those it
+    started, and the interpreter would wait for them at exit forever: every child not among
+    `others` (those before the pool) is killed. They hold nothing to clean up; one may not yet
+    have left the parent's SIGTERM handler."""
+    pool.shutdown(wait=True, cancel_futures=True)
+    for process in set(multiprocessing.active_children()) - others:
+        process.kill()
+        process.join()
 
 
 def _call(function: Callable, item) -> tuple[list, object, tuple[BaseException, str] | None]:

@@ -15,7 +15,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.motion.bvh_skeleton import bvh_skeleton
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.physics import TRUNK_MASS, body_segments, physics_features
-from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.motion.skeleton import SkeletonModel, side_of
 
 SKELETONS = {"cmu": "cmu/07/07.asf", "hdm05": "hdm05/bd/HDM_bd.asf", "bandai": "bvh-bandai/dataset-1_walk_normal_001.bvh",
              "cmu-bvh": "cmu-bvh/10/10_01.bvh"}
@@ -75,3 +75,11 @@ def test_features_do_not_see_where_the_body_is_or_which_way_it_faces(shared_data
     scale = np.abs(features).max(axis=0)
     np.testing.assert_allclose(moved / scale, features / scale, atol=1e-9)
     assert np.abs(features[:, 3:]).max() > 3 * np.abs(features[:, 1:3]).max()  # a walk: the feet swing more than the hands
+
+
+@pytest.mark.parametrize(("name", "side"), [("lfoot", "l"), ("rtoes", "r"), ("Foot_L", "l"), ("Hand_R", "r"),
+                                            ("LowerLeg_R", "r"), ("LeftFoot", "l"), ("RightHand", "r"),
+                                            ("lHand", "l"), ("head", None)])
+def test_the_side_a_limb_joint_is_on_comes_from_its_name(name, side):
+    """A side suffix wins over a first letter: Bandai's LowerLeg_R is a right bone."""
+    assert side_of(name) == side

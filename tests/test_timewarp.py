@@ -42,7 +42,8 @@ def test_a_motion_played_at_half_speed_maps_each_frame_to_its_two(search):
     slow = np.repeat(x, 2, axis=0)
     warping = dtw(x, slow) if search == "plain" else multiscale_dtw(x, slow, 120.0)
     check_path(warping.path, 200, 400)
-    np.testing.assert_allclose(warping.frame_map(), 2 * np.arange(200) + 0.5)
+    np.testing.assert_allclose(warping.carried(np.arange(400), onto=0), 2 * np.arange(200) + 0.5)
+    np.testing.assert_allclose(warping.carried(x, onto=1), slow)  # the motion itself, played slower
     assert warping.cost == pytest.approx(0.0, abs=1e-9)
 
 
@@ -97,10 +98,8 @@ def test_steps_of_other_actors_land_on_the_same_foot(shared_data, motion):
     reference, reference_steps = loaded[0]
     assert sum(map(len, reference_steps.values())) >= 2
     for take, steps in loaded[1:]:
-        path = multiscale_dtw(reference, take, 120.0).path
         # each frame of the take, in the reference's time
-        in_reference = (np.bincount(path[:, 1], weights=path[:, 0], minlength=len(take))
-                        / np.bincount(path[:, 1], minlength=len(take)))
+        in_reference = multiscale_dtw(reference, take, 120.0).carried(np.arange(len(reference)), onto=1)
         for side, frames in steps.items():
             for frame in frames:
                 distance, nearest_side = min((abs(in_reference[frame] - f), s)

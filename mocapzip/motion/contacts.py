@@ -14,7 +14,7 @@ import re
 
 import numpy as np
 
-from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.motion.skeleton import SkeletonModel, side_of
 
 FOOT_NAME = re.compile(r"toe|foot", re.IGNORECASE)
 CONTACT_HEIGHT_CM = 5.0
@@ -52,12 +52,12 @@ STEP_FRAMES = 10  # foot_strikes: contact runs, and the gaps between them, short
 
 def foot_strikes(model: SkeletonModel, positions: np.ndarray, fps: float) -> dict[str, list[int]]:
     """{"l": frames, "r": frames} where each foot comes down: the starts of its contact runs (any of
-    its foot joints planted; a joint's side from its name: lfoot, Foot_L, LeftFoot), after gaps and
+    its foot joints planted; a joint's side from its name, `side_of`), after gaps and
     runs under STEP_FRAMES are smoothed over. A run from the first frame is no strike."""
     planted = contacts(model, positions, fps)
     found = {}
-    for side, pattern in (("l", r"^l|_l$|^left"), ("r", r"^r|_r$|^right")):
-        joints = [j for j in foot_joints(model) if re.search(pattern, model.names[j].lower())]
+    for side in ("l", "r"):
+        joints = [j for j in foot_joints(model) if side_of(model.names[j]) == side]
         edges = np.flatnonzero(np.diff(np.concatenate([[0], planted[:, joints].any(axis=1), [0]]).astype(int)))
         runs: list[list[int]] = []
         for first, end in zip(edges[::2], edges[1::2]):

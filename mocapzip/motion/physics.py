@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.motion.skeleton import SIDE_SUFFIX, SkeletonModel, side_of
 
 # segment: (bone name pattern, share of body mass per bone, centre as a share of the length from
 # the proximal joint). Names are matched lower-case, less a side suffix (Bandai's UpperArm_L); the
@@ -36,7 +36,6 @@ SEGMENTS = {
     "thigh": (r"(femur|thigh|upleg|upperleg)$", 0.100, 0.433),
     "head and neck": (r"(head|neck)$", 0.081, 0.5),  # 0.081 for all such bones together
 }
-_SIDE_SUFFIX = re.compile(r"[_.][lr]$")
 TRUNK_MASS = 0.497  # halfway between the root and the shoulders
 MOMENTUM_SEGMENTS = ("hand", "foot")  # the segments whose angular momenta are features (two of each)
 
@@ -59,7 +58,7 @@ def body_segments(model: SkeletonModel) -> BodySegments:
         if model.parents[j] < 0 or ">" in name:  # the root; a BVH model's link bones ("P>child") have no mass
             continue
         for kind, (pattern, _, _) in SEGMENTS.items():
-            if re.search(pattern, _SIDE_SUFFIX.sub("", name.lower())):
+            if re.search(pattern, SIDE_SUFFIX.sub("", name.lower())):
                 kinds[kind].append(j)
                 break
     for kind in ("upper arm", *MOMENTUM_SEGMENTS):
@@ -83,7 +82,7 @@ def body_segments(model: SkeletonModel) -> BodySegments:
 
 def _left_first(model: SkeletonModel, pair: list[int]) -> list[int]:
     """A left and a right bone, the left first (lhand, Hand_L, LeftHand; CMU's BVH lists the right first)."""
-    left = [j for j in pair if re.search(r"^l|_l$|^left", model.names[j].lower())]
+    left = [j for j in pair if side_of(model.names[j]) == "l"]
     if len(left) != 1:
         raise MocapFormatError(f"cannot tell left from right among {', '.join(model.names[j] for j in pair)}")
     return left + [j for j in pair if j != left[0]]

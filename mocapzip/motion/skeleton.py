@@ -10,6 +10,7 @@ All matrices use the row-vector convention of `mocapzip.motion.rotations`.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -23,6 +24,18 @@ from mocapzip.motion.rotations import euler_matrix
 # reliably from two nearby joint positions once those are compressed, so the
 # position-based representations store their full orientation instead.
 SHORT_BONE_CM = 1.0
+
+SIDE_SUFFIX = re.compile(r"[_.]([lr])$")  # Bandai's Foot_L, Hand_R
+SIDE_PREFIX = re.compile(r"^(l|r)(?:eft|ight)?")  # CMU's and HDM05's lfoot, BVH's lHand, LeftFoot
+
+
+def side_of(name: str) -> str | None:
+    """"l" or "r": the side a limb joint's name says (a suffix before a prefix: LowerLeg_R is
+    right), or None. Only for joints already known to be a left or a right one (feet, hands): any
+    name starting with l or r reads as a side, "root" too."""
+    name = name.lower()
+    found = SIDE_SUFFIX.search(name) or SIDE_PREFIX.match(name)
+    return found.group(1) if found else None
 
 
 @dataclass(frozen=True)

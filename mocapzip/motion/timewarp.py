@@ -34,11 +34,15 @@ class Warping:
     cost: float  # the path's total cost
     cells: int  # cells of the cost matrix filled, over every level: the work done
 
-    def frame_map(self) -> np.ndarray:
-        """(n,) for each frame of the first motion, the mean frame of the second matched to it."""
-        n = int(self.path[-1, 0]) + 1
-        sums = np.bincount(self.path[:, 0], weights=self.path[:, 1], minlength=n)
-        return sums / np.bincount(self.path[:, 0], minlength=n)
+    def carried(self, values: np.ndarray, onto: int) -> np.ndarray:
+        """`values` (one row per frame of the other motion) carried onto the frames of motion `onto`
+        (0: the first, 1: the second): each frame gets the mean of the rows of the frames matched to it."""
+        to, came = self.path[:, onto], self.path[:, 1 - onto]
+        counts = np.bincount(to)
+        rows = np.asarray(values, np.float64)[came]
+        sums = np.zeros((len(counts), *rows.shape[1:]))
+        np.add.at(sums, to, rows)
+        return sums / counts.reshape(-1, *[1] * (rows.ndim - 1))
 
 
 def dtw(first: np.ndarray, second: np.ndarray) -> Warping:
