@@ -11,6 +11,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import click
 
+from mocapzip.cluster import ClusterError
 from mocapzip.formats.errors import MocapFormatError
 
 
@@ -47,6 +48,8 @@ def reports_errors(command):
             _fail(f"{exc.filename or exc}: already exists (use -f/--force to overwrite)")
         except OSError as exc:
             _fail(f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc))
+        except ClusterError as exc:
+            _fail(f"{exc}; no partial file was left behind")
         except BrokenProcessPool:  # a worker killed (the OOM killer, kill -9): its parent ends cleanly
             _fail("a worker process ended abruptly (killed, or out of memory); no partial file was left behind")
         except KeyboardInterrupt as exc:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 from collections import Counter
+from contextlib import contextmanager
 
 import click
 from click.core import ParameterSource
@@ -217,16 +218,24 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--cache-mb", type=click.IntRange(min=0), default=DEFAULT_CACHE_MB, show_default=True,
               help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
                    "so memory stays bounded however large the database. -c auto and --segment keep every clip "
-                   "in memory regardless.")
+                   "in memory regardless. With --dask, each worker keeps as much of the class it codes.")
+@click.option("--dask", "dask_address", metavar="ADDRESS", default=None,
+              help="Run the work as tasks on a Dask cluster instead of -j local workers (pip install "
+                   "'mocapzip[dask]'; docs/cluster.md): a scheduler's address (tcp://host:8786), or local:N to "
+                   "start N worker processes here. The workers read the clips themselves, by the paths found "
+                   "here: the data must be on storage they share with this machine, at the same paths. This "
+                   "process writes the archive, byte-identical to -j's.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 @click.option("--skip-bad", is_flag=True,
               help="Leave out clips that cannot be read (listed on stderr, in --json and in the archive) "
                    "instead of stopping; fails only if no clip is left.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
+@click.option("-v", "--verbose", is_flag=True,
+              help="Say where the work runs: with --dask, the scheduler, its workers and its dashboard's link.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
 def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, repair_glitches, lossless, representation, transform, wavelet, level, knot_spacing, classes,
-             segment, split, asf, fps, units, jobs, cache_mb, force, skip_bad, quiet, as_json):
+             segment, split, asf, fps, units, jobs, cache_mb, dask_address, force, skip_bad, quiet, verbose, as_json):
     """Compress the AMC and BVH clips under INPUTS (folders, searched recursively, or files) into one archive.
 
     Each AMC pairs with the ASF in its folder (or --asf): copies of one skeleton count as one, and
@@ -244,6 +253,7 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
                                                                  (a clip cut short is skipped, and listed)
       mcz compress ../shared/data/cmu -o cmu.mcz -c auto --segment  classes (and cuts) found from the poses
       mcz compress ../shared/data/bvh-bandai -o bandai.mcz -e 0.5  BVH files, each written back as BVH
+      mcz compress /shared/cmu -o cmu.mcz --dask tcp://sched:8786 -v  on a Dask cluster (docs/cluster.md)
     """
     if lossless:
         _refuse_lossy_options(click.get_current_context())
@@ -264,15 +274,34 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
                                 plant_feet=plant_feet, repair_glitches=repair_glitches, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=DEFAULT_FPS if fps is None else fps,
                                 fps_from_files=fps is None, lossless=lossless, segment=segment)
+    context = click.get_current_context()
+    if dask_address is not None and context.get_parameter_source("jobs") is ParameterSource.COMMANDLINE:
+        raise click.UsageError("-j has no meaning with --dask: the cluster's workers do the work")
     try:
-        summary = archive.compress(inputs, output, settings, asf=asf, force=force, jobs=jobs, skip_bad=skip_bad,
-                                   cache_bytes=cache_mb << 20, units=units)
+        with _where_work_runs(dask_address, verbose) as cluster:
+            summary = archive.compress(inputs, output, settings, asf=asf, force=force,
+                                       jobs=cluster.workers if cluster else jobs, skip_bad=skip_bad,
+                                       cache_bytes=cache_mb << 20, units=units)
     except archive.SettingsError as exc:  # e.g. --wavelet foo, --fps inf: a usage error, before any work
         raise click.UsageError(str(exc)) from None
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     elif not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+@contextmanager
+def _where_work_runs(dask_address: str | None, verbose: bool):
+    """The Dask cluster the work runs on (`mocapzip.cluster`), or None: local worker processes."""
+    if dask_address is None:
+        yield None
+        return
+    from mocapzip.cluster import on_cluster
+
+    with on_cluster(dask_address, dashboard=verbose) as cluster:
+        if verbose:
+            click.echo(f"mcz: {cluster.describe()}", err=True)
+        yield cluster
 
 
 def _parse_split(text):

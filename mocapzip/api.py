@@ -242,7 +242,7 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
              error: float = settings.DEFAULT_ERROR_CM, max_error: float | None = _DEFAULT,
              contact_error: float | None = None, lossless: bool = False, classes: str = "pooled",
              asf: str | os.PathLike | None = None, units: str | None = None, skip_bad: bool = False, jobs: int = 1,
-             force: bool = False, **options) -> dict:
+             dask: str | None = None, force: bool = False, **options) -> dict:
     """Compress the ASF/AMC and BVH files under `inputs` (folders or files) into the archive `output`, as
     `mcz compress` does (one worker process unless `jobs` says more); return its summary: clips,
     frames, bytes, achieved errors.
@@ -252,7 +252,10 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     `contact_error`: the bound on planted foot joints. `lossless`: every AMC value back exactly
     (then no error or bound may be given). `asf`: the skeleton of AMC files that have none beside
     them; `units`: of BVH files' lengths ("cm", "mm", "m", "in"; None: inferred from the skeleton's
-    size); `skip_bad`: leave out clips that cannot be read, listed in the summary. Other keywords
+    size); `skip_bad`: leave out clips that cannot be read, listed in the summary. `dask`: run the
+    work on a Dask cluster instead of `jobs` local workers, as `--dask` (a scheduler's address, or
+    "local:N"; docs/cluster.md; a script that starts a local one needs `if __name__ == "__main__":`).
+    Other keywords
     are fields of `mocapzip.archive.Settings` (representation="positions", ...); `fps=60` sets every
     clip's frame rate, as `--fps` (by default a clip takes the rate its files state, else 120). An
     existing `output` is replaced only with `force`.
@@ -280,8 +283,14 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     except TypeError as exc:  # a keyword that is no Settings field
         raise SettingsError(f"compress() takes no option {str(exc).rsplit(' ', 1)[-1]}") from None
     inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
-    return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force, jobs=jobs,
-                           skip_bad=skip_bad, units=units)
+    if dask is None:
+        return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force, jobs=jobs,
+                               skip_bad=skip_bad, units=units)
+    from mocapzip.cluster import on_cluster
+
+    with on_cluster(dask) as cluster:
+        return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force,
+                               jobs=cluster.workers, skip_bad=skip_bad, units=units)
 
 
 def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Iterable[str] = (), *,

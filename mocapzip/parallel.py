@@ -6,7 +6,8 @@ receiving it pickled: only each item and its result cross between processes. Ins
 `kept_workers` block (the encoder's classes) one pool serves every map, and each map's
 `_SHARED`, small there, is pickled to its workers once. Where fork is
 not available, or one job is asked for, the work runs in the calling process, one item after
-the other, exactly as the workers would do it.
+the other, exactly as the workers would do it. Inside `mocapzip.cluster.on_cluster`, the maps
+go to a Dask cluster's workers instead, each item a task.
 
 What a run in workers keeps from a run in one process: results in item order, the first
 failing item's exception (at its turn, not before the results ahead of it), and the warnings
@@ -60,6 +61,29 @@ def one_blas_thread(function: Callable) -> Callable:
     return limited
 
 
+def use_one_blas_thread() -> None:
+    """From now on, this process's BLAS runs on one thread, unless the environment sets a count
+    (`one_blas_thread`'s rule, for processes that run tasks: a Dask worker)."""
+    if not any(name in os.environ for name in BLAS_THREAD_VARIABLES):
+        threadpool_limits(limits=1)
+
+
+_CLUSTER: list = []  # the Dask cluster `parallel_map` and `imap` send their items to (`mocapzip.cluster`)
+SHIPPED: list[tuple[str, str]] = []  # (module, dict name): state a cluster's tasks need besides their module's _SHARED
+
+
+def on_a_cluster() -> bool:
+    """Whether maps go to a Dask cluster (`mocapzip.cluster.on_cluster`)."""
+    return bool(_CLUSTER)
+
+
+def shipped_with_tasks(module: str, name: str) -> None:
+    """Send the module-level dict `module.name` along with every map run on a Dask cluster, which
+    forked workers would have inherited: a loader's state that a mapped module's `_SHARED` refers to."""
+    if (module, name) not in SHIPPED:
+        SHIPPED.append((module, name))
+
+
 _RUN_HERE: set = set()  # functions this process has run before forking workers for them (`parallel_map`)
 
 
@@ -73,6 +97,8 @@ def parallel_map(function: Callable, items, jobs: int) -> list:
     used by a later function load once in each of them.
     """
     items = list(items)
+    if _CLUSTER:
+        return _CLUSTER[-1].map(function, items)
     done = []
     if jobs > 1 and len(items) > 1 and function not in _RUN_HERE:
         _RUN_HERE.add(function)
@@ -156,7 +182,8 @@ def _call_with_state(module: str, state: str, function: Callable, item):
     return _call(function, item)
 
 
-def imap(function: Callable, items: Sequence, jobs: int, window: int | None = None) -> Iterator:
+def imap(function: Callable, items: Sequence, jobs: int, window: int | None = None,
+         priorities: Sequence | None = None) -> Iterator:
     """`function(item)` for each of `items`, yielded in order, computed in `jobs` forked worker
     processes when that can help (else here, one at a time, as each is asked for).
 
@@ -168,6 +195,9 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
     running behind. A consumer that may stop early must close the generator
     (`contextlib.closing`), so that this happens at once rather than when it is collected.
     """
+    if _CLUSTER:  # `priorities`: which items a cluster starts first (local workers take them in order)
+        yield from _CLUSTER[-1].imap(function, items, window, priorities)
+        return
     if jobs <= 1 or len(items) < 2 or "fork" not in multiprocessing.get_all_start_methods():
         for item in items:
             yield function(item)
@@ -198,7 +228,12 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
 def _result(future):
     """A worker's result, its warnings given here first (as one process raises them, at the item's
     turn), or the exception it raised, with the worker's traceback as its cause."""
-    caught, result, error = future.result()
+    return _unpacked(future.result())
+
+
+def _unpacked(outcome: tuple):
+    """What `_call` returned in a worker, as `_result` gives it."""
+    caught, result, error = outcome
     for message, category, filename, lineno in caught:
         warnings.warn_explicit(message, category, filename, lineno)
     if error is not None:

@@ -44,7 +44,7 @@ from mocapzip.inputs.discover import ClipSource, find_clips, no_clips, record_sk
 from mocapzip.defaults import DEFAULT_CACHE_MB, UNITS_CM
 from mocapzip.motion.bvh_skeleton import BvhSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
-from mocapzip.parallel import imap, kept_workers, one_blas_thread, parallel_map
+from mocapzip.parallel import imap, kept_workers, on_a_cluster, one_blas_thread, parallel_map, shipped_with_tasks
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
 from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved
@@ -451,11 +451,11 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
     frames = [sum(units[u].coded_frames for u in members) for members in members_of]
     # counted in frames, not classes: one subject is one class, and a bar at 0/1 tells nothing
     _CODING["reader"] = reader  # the kept workers fork from the first class's first map
+    classes = [([units[u] for u in members], scan.poses.get(name)) for name, members in zip(class_names, members_of)]
     try:
-        with progress(total=sum(frames), desc="code", unit="frame") as bar, kept_workers(jobs):
-            for k, (name, members) in enumerate(zip(class_names, members_of)):
-                clips = ClipsOnDemand([units[u] for u in members], _load_unit)
-                basis, codings = encode_class(clips, transform, settings, jobs, scan.poses.get(name))
+        with progress(total=sum(frames), desc="code", unit="frame") as bar, kept_workers(jobs), \
+                closing(_coded_classes(classes, transform, settings, jobs)) as coded:
+            for k, (name, members, (basis, codings)) in enumerate(zip(class_names, members_of, coded)):
                 writer.add(f"class/{k:04d}", basis.encode())
                 classes_meta.append({"name": name, "components": basis.q,
                                      "clips": len({units[u].clip for u in members}), "frames": frames[k]})
@@ -486,7 +486,37 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
     return classes_meta, interim
 
 
+def _coded_classes(classes: list[tuple[list[_Unit], CovarianceAccumulator | None]], transform, settings: Settings,
+                   jobs: int):
+    """(basis, codings) of each class (its units and, if summed, its weighted poses), in order
+    (`encode_class`). Here, one class after the other, each spread over the `jobs` local workers.
+    On a Dask cluster, each class is one task and all are in flight at once, the largest started
+    first: a class's maps wait for their last clip, and a cluster of many workers would idle
+    through every class's barriers."""
+    if not on_a_cluster():
+        for members, accumulator in classes:
+            yield encode_class(ClipsOnDemand(members, _load_unit), transform, settings, jobs, accumulator)
+        return
+    _SHARED.update(classes=classes, transform=transform, settings=settings)
+    try:
+        sizes = [sum(unit.coded_frames for unit in members) for members, _ in classes]
+        yield from imap(_coded_class, range(len(classes)), jobs, priorities=sizes)
+    finally:
+        _SHARED.clear()
+
+
+def _coded_class(k: int):
+    """In a Dask worker: class k coded there, on one core; its clips, kept by the worker's reader
+    while the class is coded, forgotten after."""
+    members, accumulator = _SHARED["classes"][k]
+    coded = encode_class(ClipsOnDemand(members, _load_unit), _SHARED["transform"], _SHARED["settings"], 1,
+                         accumulator)
+    _CODING["reader"].forget([unit.source for unit in members])
+    return coded
+
+
 _CODING: dict = {}  # the reader of the clips being coded, which the kept workers inherit (`_load_unit`)
+shipped_with_tasks(__name__, "_CODING")  # a Dask worker gets it with each map instead
 
 
 def _load_unit(unit: _Unit) -> LoadedClip:

@@ -218,6 +218,16 @@ class ClipReader:
         self._glitches: dict[ClipSource, list[Glitch]] = {}  # found once per clip, however often it is read
         self._kept: dict[ClipSource, LoadedClip] = {}
         self._kept_bytes = 0
+        self._keeps_loads = False  # a copy in a Dask worker keeps what it reads (`__setstate__`)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the clips it keeps: a Dask worker reads them again (`mocapzip.cluster`)."""
+        return {**self.__dict__, "_kept": {}, "_kept_bytes": 0}
+
+    def __setstate__(self, state: dict) -> None:
+        """A copy in a Dask worker keeps the clips it reads, within the budget: the worker codes a whole
+        class, and visits each of its clips several times (`writer._coded_class`)."""
+        self.__dict__.update(state, _keeps_loads=True)
 
     def read(self, source: ClipSource) -> LoadedClip:
         """Parse the clip (checking every bone line against its skeleton) and convert it; raises
@@ -305,7 +315,10 @@ class ClipReader:
             return clip
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return self.read(source)
+            clip = self.read(source)
+        if self._keeps_loads:
+            self.keep(clip)
+        return clip
 
     def keep(self, clip: LoadedClip) -> None:
         """Hold `clip` for later `load`s if it fits in the budget; its glitches in any case."""

@@ -1,0 +1,223 @@
+"""`mcz compress --dask ADDRESS`: the work `mocapzip.parallel` maps, run as tasks on a Dask cluster.
+
+Inside `on_cluster`, every `parallel_map` and `imap` of the process goes to the cluster's
+workers instead of forked ones: the first pass's reading (a task per clip), the class coding
+(a task per class: `writer._coded_classes`) and the priors' re-coding (a task per clip). The
+client (this process) does everything else, in the same order as with local workers, and writes
+the archive. Each task computes what local workers would from the same item and the same state,
+so the archive is byte-identical to `-j N`'s.
+
+A task's state is what a forked worker would have inherited: its function's module's `_SHARED`,
+and the module dicts named in `parallel.SHIPPED` (the encoder's clip loader). It is pickled once
+per map, scattered to every worker, and installed in a worker once per map, with the client's
+working folder as the worker's. Clips are never in it: workers read them again from the paths
+the client found, so the data must be on storage the workers share with the client, at the same
+paths. A `ClipReader` pickles without the clips it keeps (`ClipReader.__getstate__`).
+
+Dask itself recovers from a lost worker: the scheduler gives its tasks to the others, and the
+state, scattered to every worker, survives in the rest. A task that keeps killing its workers
+(Dask's `allowed-failures`), a task Dask cannot run (a worker with another mcz), or a cluster that
+goes away ends the run with `ClusterError`; an item's own error ends it as with local workers.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import pickle
+import threading
+import uuid
+from collections import deque
+from contextlib import contextmanager
+
+from mocapzip import parallel
+from mocapzip.progress import progress
+
+# Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_ set, which turns off glibc's adaptive mmap
+# threshold: every large numpy array is then mapped and unmapped afresh. mcz's tasks ran 1.7x slower
+# so (system time 11 s against 3 s, shared CMU set, one local worker). docs/cluster.md says how to
+# start remote workers without it.
+LOCAL_WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+CONNECT_TIMEOUT_S = 20  # to reach a scheduler given by address
+SMALLEST_WINDOW_PER_WORKER = 4  # imap's items in flight per worker, at least: enough to keep each one busy
+
+
+class ClusterError(Exception):
+    """The cluster could not be used, or it lost work it could not redo: one line, no archive written."""
+
+
+def parse_address(address: str) -> tuple[int | None, str | None]:
+    """(N, None) for `local` (N: the cores) or `local:N`; (None, address) for a scheduler's address."""
+    if address == "local" or address.startswith("local:"):
+        count = address.partition(":")[2] or str(os.cpu_count() or 1)
+        if not count.isdigit() or int(count) < 1:
+            raise ClusterError(f"--dask {address}: expected local or local:N with N a number of workers, 1 or more")
+        return int(count), None
+    if not address or any(c.isspace() for c in address):
+        raise ClusterError(f"--dask {address!r}: expected a scheduler address such as tcp://host:8786, or local:N")
+    return None, address
+
+
+@contextmanager
+def on_cluster(address: str, dashboard: bool = False):
+    """Within the block, `parallel` maps run on the Dask cluster at `address` (`parse_address`):
+    a scheduler already running, or a `LocalCluster` of N worker processes started here (and
+    stopped after), with its dashboard when `dashboard`. Yields the `Cluster`."""
+    workers, scheduler = parse_address(address)
+    try:
+        import dask
+        import distributed
+    except ImportError:
+        raise ClusterError("--dask needs Dask's distributed scheduler: pip install 'mocapzip[dask]'") from None
+    local = None
+    try:
+        if workers is not None:
+            with dask.config.set(LOCAL_WORKER_CONFIG):
+                local = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                                 dashboard_address=":0", silence_logs=logging.ERROR)
+            scheduler = local.scheduler_address
+        client = distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        if local is not None:
+            local.close()
+        raise ClusterError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    run = Cluster(client, local is not None)
+    parallel._CLUSTER.append(run)
+    try:
+        yield run
+    finally:
+        parallel._CLUSTER.pop()
+        run.close()
+        client.close()
+        if local is not None:
+            local.close()
+
+
+class Cluster:
+    """A connected Dask client that runs `parallel`'s maps as tasks, and the progress bar of its tasks."""
+
+    def __init__(self, client, local: bool):
+        self.client, self.local = client, local
+        self.bar = progress(total=0, desc="cluster", unit="task")
+        self.submitted = self.done = 0  # tasks sent to the cluster, and those it has finished
+        self._lock = threading.Lock()
+
+    @property
+    def workers(self) -> int:
+        """Worker threads the scheduler has now (each runs one task at a time)."""
+        return max(1, sum(self.client.nthreads().values()))
+
+    def describe(self) -> str:
+        """One line for `-v`: where the work runs, and the dashboard if there is one."""
+        kind = "a local cluster" if self.local else "the scheduler"
+        link = self.client.dashboard_link if self.client.scheduler_info().get("services", {}).get("dashboard") else None
+        return (f"dask: {kind} at {self.client.scheduler.address}, {self.workers} worker threads; "
+                + (f"dashboard {link}" if link else "no dashboard (pip install bokeh, or start the scheduler with one)"))
+
+    def map(self, function, items: list) -> list:
+        """`[function(item) for item in items]` on the cluster, with `parallel.imap`'s warnings and first error."""
+        return list(self.imap(function, items))
+
+    def imap(self, function, items, window: int | None = None, priorities: list | None = None):
+        """`function(item)` of each item, yielded in order; at most `window` in flight (at least
+        SMALLEST_WINDOW_PER_WORKER per worker), started in item order or, given `priorities`, the
+        highest first. Stopping early cancels the tasks not yet yielded."""
+        items = list(items)
+        if not items:
+            return
+        window = len(items) if window is None else max(window, SMALLEST_WINDOW_PER_WORKER * self.workers)
+        state, state_id = self._scatter_state(function)
+        pending: deque = deque()
+        queue = iter(enumerate(items))
+
+        def submit() -> None:
+            for i, item in queue:
+                future = self.client.submit(_task, state_id, state, function, item, pure=False,
+                                            key=f"{function.__name__}-{state_id}-{i}",
+                                            priority=-i if priorities is None else priorities[i])
+                future.add_done_callback(self._done)
+                pending.append(future)
+                with self._lock:
+                    self.submitted += 1
+                    self.bar.total = self.submitted
+                if len(pending) >= window:
+                    return
+
+        try:
+            submit()
+            while pending:
+                outcome = self._outcome(pending.popleft())
+                submit()
+                yield parallel._unpacked(outcome)
+        finally:
+            if pending:
+                self.client.cancel(list(pending))
+
+    def _scatter_state(self, function):
+        """The map's state, pickled, on every worker (a lost worker's copy is not the only one)."""
+        shipped = [(function.__module__, "_SHARED"), *parallel.SHIPPED]
+        blob = pickle.dumps((os.getcwd(), {(module, name): dict(getattr(importlib.import_module(module), name))
+                                           for module, name in shipped}), protocol=pickle.HIGHEST_PROTOCOL)
+        state_id = uuid.uuid4().hex[:12]
+        return self.client.scatter(blob, broadcast=True, hash=False), state_id
+
+    def _outcome(self, future):
+        try:
+            return future.result()
+        except Exception as exc:  # the task's own errors come back as values (`parallel._call`): this is Dask's
+            detail = str(exc).split(". ")[0].splitlines()[0] if str(exc) else "no detail"
+            raise ClusterError(f"the Dask cluster could not run a task ({type(exc).__name__}: {detail})") from None
+
+    def _done(self, future) -> None:
+        with self._lock:
+            self.done += 1
+            self.bar.update(1)
+
+    def close(self) -> None:
+        """Close the bar; workers forget the last map's state (a scheduler outlives this run)."""
+        self.bar.close()
+        try:
+            self.client.run(_forget)
+        except Exception:  # a cluster already gone has nothing left to forget
+            pass
+
+
+_INSTALLED = {"id": None, "dicts": []}  # in a worker: the state its module dicts hold now, and those dicts
+_INSTALLING = threading.Lock()  # a worker may run tasks on several threads
+
+
+def _task(state_id: str, state: bytes, function, item):
+    """In a worker: the map's state installed (once per map), then `parallel._call`."""
+    with _INSTALLING:
+        if _INSTALLED["id"] != state_id:
+            installed = parallel._call(lambda blob: _install(*pickle.loads(blob)), state)
+            if installed[2] is not None:  # the item's error, given at its turn
+                return installed
+            _INSTALLED["id"] = state_id
+    return parallel._call(function, item)
+
+
+def _install(folder: str, state: dict) -> None:
+    """The client's working folder (the paths it found clips by may be relative to it), and each
+    dict's values as the client holds them."""
+    try:
+        os.chdir(folder)
+    except OSError as exc:
+        raise ClusterError(f"the folder mcz was run from, {folder}, is not on the Dask worker "
+                           f"{os.uname().nodename} ({exc.strerror}): the workers must see the clips at the "
+                           "same paths as this machine (docs/cluster.md)") from None
+    parallel.use_one_blas_thread()
+    for (module, name), values in state.items():
+        target = getattr(importlib.import_module(module), name)
+        target.clear()
+        target.update(values)
+        if not any(target is installed for installed in _INSTALLED["dicts"]):
+            _INSTALLED["dicts"].append(target)
+
+
+def _forget() -> None:
+    with _INSTALLING:
+        for target in _INSTALLED["dicts"]:
+            target.clear()
+        _INSTALLED.update(id=None, dicts=[])

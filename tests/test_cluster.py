@@ -1,0 +1,198 @@
+"""`mcz compress --dask` (issue 20): the work as tasks on a Dask cluster gives the archive `-j 2`
+gives, byte for byte; a worker killed mid-run changes nothing; a cluster that keeps losing the
+work ends the run with one line and no output.
+
+Every cluster here is a `distributed.LocalCluster` of worker processes on this machine. Nothing
+depends on how fast anything runs.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import dask
+import pytest
+from click.testing import CliRunner
+from distributed import Client, LocalCluster
+from distributed.diagnostics.plugin import WorkerPlugin
+
+import mocapzip
+from mocapzip import cluster
+from mocapzip.cli.main import main
+from mocapzip.inputs.clip import ClipReader
+from mocapzip.inputs.discover import find_clips
+
+MCZ = Path(sys.executable).with_name("mcz")
+DEADLINE = 600.0  # seconds: only a hang reaches it
+
+
+def two_subjects(data: Path) -> list[Path]:
+    """Two CMU subjects, two classes: short walks (07) and a mix (09)."""
+    return [data / "cmu" / "07", data / "cmu" / "09"]
+
+
+@pytest.fixture(scope="module")
+def local_archive(shared_data, tmp_path_factory) -> bytes:
+    """The two subjects' archive made by two local worker processes (`-j 2`)."""
+    out = tmp_path_factory.mktemp("local") / "j2.mcz"
+    mocapzip.compress(two_subjects(shared_data), out, jobs=2)
+    return out.read_bytes()
+
+
+def test_dask_local_2_writes_the_archive_of_j2(shared_data, tmp_path, local_archive):
+    """The issue's proof, through the command line: `--dask local:2` starts a LocalCluster of two
+    worker processes, and its archive is byte-identical to `-j 2`'s. `-v` names the cluster."""
+    out = tmp_path / "dask.mcz"
+    run = subprocess.run([MCZ, "compress", *two_subjects(shared_data), "-o", out, "--dask", "local:2",
+                          "-v"], capture_output=True, text=True, timeout=DEADLINE)
+    assert run.returncode == 0, run.stderr
+    assert "mcz: dask: a local cluster at tcp://" in run.stderr and "2 worker threads" in run.stderr
+    assert out.read_bytes() == local_archive
+
+
+class _KillOnce(WorkerPlugin):
+    """Kills the first worker that starts coding a class (`writer._coded_class`) after `skip` such
+    starts on it, once across the cluster (a file marks it done; with `every`, each time): the nanny
+    restarts it, the scheduler hands its tasks on."""
+
+    def __init__(self, marker: str, skip: int, prefix: str = "_coded_class", every: bool = False):
+        self.marker, self.skip, self.prefix, self.every, self.seen = marker, skip, prefix, every, 0
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish != "executing" or not str(key).startswith(self.prefix):
+            return
+        self.seen += 1
+        if self.seen <= self.skip:
+            return
+        if not self.every:
+            try:
+                os.close(os.open(self.marker, os.O_CREAT | os.O_EXCL))
+            except FileExistsError:
+                return
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+@pytest.fixture
+def two_workers():
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as local:
+        yield local
+
+
+def test_a_worker_killed_mid_run_changes_nothing(shared_data, tmp_path, local_archive, two_workers):
+    """A worker dies (SIGKILL) as it starts coding a class: Dask gives its tasks to the other worker
+    and to its restarted self, and the archive is still byte-identical to `-j 2`'s."""
+    marker = tmp_path / "killed"
+    with Client(two_workers) as client:
+        client.register_plugin(_KillOnce(os.fspath(marker), skip=0))
+        out = tmp_path / "dask.mcz"
+        mocapzip.compress(two_subjects(shared_data), out, dask=two_workers.scheduler_address)
+    assert marker.exists(), "no worker was killed: the test did not test anything"
+    assert out.read_bytes() == local_archive
+
+
+def test_a_task_that_keeps_killing_workers_ends_the_run_with_one_line(shared_data, tmp_path):
+    """Every worker that starts coding a class dies. Past Dask's allowed failures the run ends: exit
+    code 1, one line on stderr, and no archive, not even a partial one."""
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), \
+            LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as local, \
+            Client(local) as client:
+        client.register_plugin(_KillOnce(os.fspath(tmp_path / "unused"), skip=0, every=True))
+        out = tmp_path / "dask.mcz"
+        result = CliRunner().invoke(main, ["compress", os.fspath(shared_data / "cmu" / "07"), "-o", os.fspath(out),
+                                           "--dask", local.scheduler_address, "-q"])
+    assert result.exit_code == 1, result.output
+    errors = [line for line in result.stderr.splitlines() if line.startswith("mcz: error:")]
+    assert len(errors) == 1 and errors[0].startswith("mcz: error: the Dask cluster could not run a task"), result.stderr
+    assert "KilledWorker" in errors[0] and errors[0].endswith("no partial file was left behind")
+    assert "Traceback" not in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_cluster_counts_every_task_done(shared_data, tmp_path, two_workers):
+    """The progress bar's count: every task sent to the cluster is counted done by the end: a task
+    per clip read, one for the class, a task per clip re-coded with the priors."""
+    with cluster.on_cluster(two_workers.scheduler_address) as run:
+        summary = mocapzip.api.writer.compress([os.fspath(shared_data / "cmu" / "07")], tmp_path / "a.mcz",
+                                               mocapzip.archive.Settings(), jobs=run.workers)
+        assert run.done == run.submitted == 2 * summary["clips"] + 1
+
+
+@pytest.mark.parametrize("address, message", [
+    ("local:0", "expected local or local:N"),
+    ("local:x", "expected local or local:N"),
+    ("tcp://a b", "expected a scheduler address"),
+])
+def test_bad_addresses_are_refused(address, message):
+    with pytest.raises(cluster.ClusterError, match=message):
+        cluster.parse_address(address)
+
+
+def test_local_takes_every_core_or_the_number_given():
+    assert cluster.parse_address("local") == (os.cpu_count(), None)
+    assert cluster.parse_address("local:3") == (3, None)
+    assert cluster.parse_address("tcp://host:8786") == (None, "tcp://host:8786")
+
+
+def test_a_scheduler_not_there_is_one_line(shared_data, tmp_path, monkeypatch):
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 1)
+    out = tmp_path / "x.mcz"
+    result = CliRunner().invoke(main, ["compress", os.fspath(shared_data / "cmu" / "07"), "-o", os.fspath(out),
+                                       "--dask", "tcp://127.0.0.1:9", "-q"])
+    assert result.exit_code == 1
+    assert result.stderr.startswith("mcz: error: cannot reach the Dask scheduler at tcp://127.0.0.1:9")
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_jobs_with_dask_is_a_usage_error(shared_data, tmp_path):
+    result = CliRunner().invoke(main, ["compress", os.fspath(shared_data / "cmu" / "07"), "-o",
+                                       os.fspath(tmp_path / "x.mcz"), "--dask", "local:2", "-j", "2"])
+    assert result.exit_code == 2 and "-j has no meaning with --dask" in result.stderr
+
+
+def test_a_reader_pickles_without_its_clips_and_its_copy_keeps_what_it_reads(shared_data):
+    """What a Dask worker gets of the encoder's `ClipReader`: its settings, not the
+    clips it keeps (those would travel with every map); the copy keeps the clips it reads."""
+    source = find_clips([shared_data / "cmu" / "07"])[0]
+    reader = ClipReader("aligned", budget_bytes=None)
+    reader.keep(reader.read(source))
+    assert reader.load(source) is reader.load(source)
+    blob = pickle.dumps(reader)
+    copy = pickle.loads(blob)
+    assert copy._kept == {} and copy.budget_bytes is None and copy.representation_name == "aligned"
+    assert len(blob) < 100_000
+    first = copy.load(source)
+    assert copy.load(source) is first
+    assert reader._keeps_loads is False
+
+
+def test_a_clip_that_cannot_be_read_fails_as_with_local_workers(shared_data, tmp_path):
+    """An item's own error (here a bad number in an AMC, read by a worker) ends the run with the
+    message local workers give: the file, the line, what was wrong."""
+    source = shared_data / "cmu" / "07"
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    (clips / "07.asf").write_bytes((source / "07.asf").read_bytes())
+    lines = (source / "07_01.amc").read_text().splitlines(keepends=True)
+    bad = next(i for i, line in enumerate(lines) if line.startswith("lowerback"))
+    lines[bad] = "lowerback 1.0 nonsense 3.0\n"
+    (clips / "07_01.amc").write_text("".join(lines))
+    messages = []
+    for how in (["-j", "2"], ["--dask", "local:2"]):
+        result = CliRunner().invoke(main, ["compress", os.fspath(clips), "-o", os.fspath(tmp_path / "x.mcz"), "-q",
+                                           *how])
+        assert result.exit_code == 1
+        messages.append(result.stderr)
+    assert messages[0] == messages[1]
+    assert messages[0].startswith(f"mcz: error: {clips / '07_01.amc'}:{bad + 1}:"), messages[0]
+    assert not (tmp_path / "x.mcz").exists()
+
+
+def test_a_worker_without_the_clients_folder_says_so():
+    with pytest.raises(cluster.ClusterError, match="is not on the Dask worker .* at the same paths"):
+        cluster._install("/no/such/folder/here", {})
