@@ -26,6 +26,7 @@ import importlib
 import logging
 import os
 import pickle
+import signal
 import threading
 import uuid
 from collections import deque
@@ -73,9 +74,9 @@ def on_cluster(address: str, dashboard: bool = False):
     local = None
     try:
         if workers is not None:
-            with dask.config.set(LOCAL_WORKER_CONFIG):
+            with dask.config.set(LOCAL_WORKER_CONFIG), _children_ignore_ctrl_c():
                 local = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                                 dashboard_address=":0", silence_logs=logging.ERROR)
+                                                 dashboard_address=":0", silence_logs=logging.CRITICAL)
             scheduler = local.scheduler_address
         client = distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False)
     except (OSError, TimeoutError) as exc:
@@ -86,12 +87,30 @@ def on_cluster(address: str, dashboard: bool = False):
     parallel._CLUSTER.append(run)
     try:
         yield run
-    finally:
+        if local is None:  # a scheduler that outlives this run: its workers forget the last map's state
+            client.run(_forget)
+    finally:  # after an error or Ctrl-C, at once (a dead worker would hold up `client.run` for 30 s)
         parallel._CLUSTER.pop()
-        run.close()
+        run.bar.close()
         client.close()
         if local is not None:
             local.close()
+
+
+@contextmanager
+def _children_ignore_ctrl_c():
+    """Worker processes started in the block ignore SIGINT (a process started with it ignored keeps
+    ignoring it, in Python and asyncio alike). Ctrl-C in a terminal reaches the whole process
+    group: mcz handles it (one line, the cluster closed, no file left), and the workers would
+    otherwise each print a traceback. A worker a nanny restarts later does not inherit this."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 class Cluster:
@@ -173,14 +192,6 @@ class Cluster:
         with self._lock:
             self.done += 1
             self.bar.update(1)
-
-    def close(self) -> None:
-        """Close the bar; workers forget the last map's state (a scheduler outlives this run)."""
-        self.bar.close()
-        try:
-            self.client.run(_forget)
-        except Exception:  # a cluster already gone has nothing left to forget
-            pass
 
 
 _INSTALLED = {"id": None, "dicts": []}  # in a worker: the state its module dicts hold now, and those dicts

@@ -13,6 +13,7 @@ import pickle
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import dask
@@ -196,3 +197,53 @@ def test_a_clip_that_cannot_be_read_fails_as_with_local_workers(shared_data, tmp
 def test_a_worker_without_the_clients_folder_says_so():
     with pytest.raises(cluster.ClusterError, match="is not on the Dask worker .* at the same paths"):
         cluster._install("/no/such/folder/here", {})
+
+
+# Imported by every worker of the run's LocalCluster (Dask's worker preload): the first class a
+# worker starts coding is held, after the marker file is made, until the test's release file exists.
+HOLD_A_CLASS = r"""
+import os, time
+from pathlib import Path
+from mocapzip.archive import writer
+
+real = writer._coded_class
+
+def held(k):
+    marker = Path(os.environ["MCZ_TEST_MARKER"])
+    marker.touch()
+    for _ in range(6000):
+        if marker.with_suffix(".release").exists():
+            break
+        time.sleep(0.01)
+    return real(k)
+
+writer._coded_class = held
+"""
+
+
+def test_ctrl_c_in_a_terminal_ends_a_dask_run_in_one_line(shared_data, tmp_path):
+    """Ctrl-C in a terminal reaches the whole process group, the local cluster's workers included:
+    mcz alone answers, in one line (no worker's traceback), leaves no file and no process behind.
+    The signal comes while a worker holds a class (a state, not a clock)."""
+    out, marker, hold = tmp_path / "out", tmp_path / "marker", tmp_path / "hold.py"
+    out.mkdir()
+    hold.write_text(HOLD_A_CLASS)
+    env = {**os.environ, "MCZ_TEST_MARKER": os.fspath(marker), "DASK_DISTRIBUTED__WORKER__PRELOAD": f"['{hold}']"}
+    proc = subprocess.Popen([MCZ, "compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", "local:2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            start_new_session=True,  # a process group of its own, as in a terminal
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    while not marker.exists():
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGINT)
+    marker.with_suffix(".release").touch()
+    _, stderr = proc.communicate(timeout=DEADLINE)
+    assert proc.returncode == 1, stderr
+    assert [line for line in stderr.splitlines() if not line.startswith("mcz: warning:")] == [
+        "mcz: error: interrupted (SIGINT); no partial file was left behind"], stderr
+    assert list(out.iterdir()) == []
+    with pytest.raises(ProcessLookupError):  # every worker has gone with it
+        for _ in range(500):
+            os.killpg(proc.pid, 0)
+            time.sleep(0.02)
