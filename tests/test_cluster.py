@@ -174,7 +174,8 @@ def test_a_reader_pickles_without_its_clips_and_its_copy_keeps_what_it_reads(sha
 
 def test_a_clip_that_cannot_be_read_fails_as_with_local_workers(shared_data, tmp_path):
     """An item's own error (here a bad number in an AMC, read by a worker) ends the run with the
-    message local workers give: the file, the line, what was wrong."""
+    message local workers give: the file, the line, what was wrong. With --skip-bad, the clip is
+    left out and the archive is -j 2's."""
     source = shared_data / "cmu" / "07"
     clips = tmp_path / "clips"
     clips.mkdir()
@@ -192,6 +193,16 @@ def test_a_clip_that_cannot_be_read_fails_as_with_local_workers(shared_data, tmp
     assert messages[0] == messages[1]
     assert messages[0].startswith(f"mcz: error: {clips / '07_01.amc'}:{bad + 1}:"), messages[0]
     assert not (tmp_path / "x.mcz").exists()
+    (clips / "07_02.amc").write_bytes((source / "07_02.amc").read_bytes())  # with --skip-bad: one clip left
+    archives = []
+    for how in (["-j", "2"], ["--dask", "local:2"]):
+        out = tmp_path / f"{how[1]}.mcz"
+        result = CliRunner().invoke(main, ["compress", os.fspath(clips), "-o", os.fspath(out), "-q", "--skip-bad", *how])
+        assert result.exit_code == 0, result.stderr
+        archives.append(out.read_bytes())
+    assert archives[0] == archives[1]
+    with mocapzip.open(tmp_path / "local:2.mcz") as archive:
+        assert archive.paths == ["07_02.amc"]
 
 
 def test_a_worker_without_the_clients_folder_says_so():

@@ -246,15 +246,20 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
 
     A clip that cannot be read raises MocapFormatError or OSError; with a `skipped` list it
     is left out and recorded there instead (`inputs.record_skip`).
+
+    On a Dask cluster, unless the clips must all be kept here (`accumulate` off: -c auto,
+    --segment), a worker also takes its clip (`_take`) and sends back only what is kept of it,
+    not its arrays: the client, alone, would otherwise bound the whole run.
     """
     if parse_auto(settings.classes) is False:
         name_class = class_namer(settings.classes)
     else:  # lossless clips share no basis: there is nothing to group
         name_class = (lambda source: "all") if settings.lossless else None
     scan = _FirstPass()
-    _SHARED.update(reader=reader)  # the workers fork from here
+    _SHARED.update(reader=reader, settings=settings, accumulate=accumulate)  # the workers fork from here
+    taken_there = on_a_cluster() and (accumulate or settings.lossless)
     try:
-        with closing(imap(_read_clip, sources, jobs, CLIPS_AHEAD * jobs)) as read:
+        with closing(imap(_read_and_take if taken_there else _read_clip, sources, jobs, CLIPS_AHEAD * jobs)) as read:
             for source in progress(sources, desc="read", unit="clip"):
                 try:  # the skeleton here, in order: its warnings and errors come as one process gives them
                     model, failure = reader.skeleton(source.asf)[1], None
@@ -265,33 +270,35 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
                     failure = failure or (outcome if isinstance(outcome, Exception) else None)
                     if failure is not None:
                         raise failure
-                    clip, stream = outcome
-                    clip.model = model
-                    if not settings.lossless:
-                        _check_codable(clip)
+                    if isinstance(outcome, _Taken):  # taken by a Dask worker
+                        taken = outcome
+                    else:
+                        clip, stream = outcome
+                        clip.model = model
+                        taken = _take(clip, stream, settings, accumulate)
                 except (MocapFormatError, OSError) as exc:
                     if skipped is None:
                         raise
                     record_skip(skipped, source, exc)
                     continue
-                scan.rows.append(_clip_row(clip, settings.fps))
-                if clip.glitches:
-                    scan.glitches.update(g.kind for g in clip.glitches)
+                scan.rows.append(taken.row)
+                if taken.glitches:
+                    scan.glitches.update(g.kind for g in taken.glitches)
                     scan.glitches["clips"] += 1
                 if name_class is not None:
                     scan.classes.append(name_class(source))
                 if settings.lossless:
-                    writer.add(f"clip/{len(scan.sources):05d}", stream)
+                    writer.add(f"clip/{len(scan.sources):05d}", taken.stream)
                     scan.rows[-1].update(error_cm=0.0, p99_error_cm=0.0, max_error_cm=0.0)
                 else:
-                    if stream is not None:  # a BVH clip's extra root, kept exactly
-                        writer.add(f"extra_root/{len(scan.sources):05d}", stream)
-                    dim = clip.poses.shape[1]
+                    if taken.stream is not None:  # a BVH clip's extra root, kept exactly
+                        writer.add(f"extra_root/{len(scan.sources):05d}", taken.stream)
                     if name_class is not None:
-                        scan.widths.setdefault(scan.classes[-1], dim)
+                        scan.widths.setdefault(scan.classes[-1], taken.width)
                     if accumulate:
-                        scan.poses.setdefault(scan.classes[-1], CovarianceAccumulator(dim)).add(clip.poses)
-                    reader.keep(clip)
+                        scan.poses.setdefault(scan.classes[-1], CovarianceAccumulator(taken.width)).merge(taken.poses)
+                    if taken.clip is not None:
+                        reader.keep(taken.clip)
                 scan.sources.append(source)
     finally:
         _SHARED.clear()
@@ -337,6 +344,46 @@ def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None] | MocapFor
     if clip.encoded is None:
         return clip, encode_channels(clip.motion.values)
     return clip, None if clip.extra_root is None else encode_channels(clip.extra_root)
+
+
+@dataclass
+class _Taken:
+    """What the first pass keeps of a clip: its row in meta, its glitches, its pose width, its
+    weighted poses' count, mean and scatter (lossy, with `accumulate`: merged into its class's,
+    exactly as adding the poses there would), its stream (lossless, or a BVH clip's extra root),
+    and the clip itself unless a Dask worker took it."""
+
+    row: dict
+    glitches: list | None
+    width: int
+    poses: CovarianceAccumulator | None
+    stream: bytes | None
+    clip: LoadedClip | None
+
+
+def _take(clip: LoadedClip, stream: bytes | None, settings: Settings, accumulate: bool) -> _Taken:
+    """The first pass's take of a clip read (`_Taken`); MocapFormatError if a lossy archive cannot hold it."""
+    if settings.lossless:
+        return _Taken(_clip_row(clip, settings.fps), clip.glitches, 0, None, stream, clip)
+    _check_codable(clip)
+    poses = None
+    if accumulate:
+        poses = CovarianceAccumulator(clip.poses.shape[1])
+        poses.add(clip.poses)
+    return _Taken(_clip_row(clip, settings.fps), clip.glitches, clip.poses.shape[1], poses, stream, clip)
+
+
+def _read_and_take(source: ClipSource) -> _Taken | MocapFormatError | OSError:
+    """On a Dask worker: `_read_clip`, then `_take`, without the clip (the client needs its row and sums)."""
+    outcome = _read_clip(source)
+    if isinstance(outcome, Exception):
+        return outcome
+    clip, stream = outcome
+    clip.model = _SHARED["reader"].skeleton(source.asf)[1]
+    try:
+        return replace(_take(clip, stream, _SHARED["settings"], _SHARED["accumulate"]), clip=None)
+    except MocapFormatError as exc:
+        return exc
 
 
 def _check_codable(clip: LoadedClip) -> None:
