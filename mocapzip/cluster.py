@@ -34,6 +34,7 @@ from collections import deque
 from contextlib import contextmanager
 
 from mocapzip import parallel
+from mocapzip.defaults import BLAS_THREAD_VARIABLES
 from mocapzip.progress import progress
 
 # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_ set, which turns off glibc's adaptive mmap
@@ -75,7 +76,7 @@ def on_cluster(address: str, dashboard: bool = False):
     local = None
     try:
         if workers is not None:
-            with dask.config.set(LOCAL_WORKER_CONFIG), _children_ignore_ctrl_c():
+            with dask.config.set(LOCAL_WORKER_CONFIG), _children_ignore_ctrl_c(), _blas_variables_kept():
                 local = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                                  dashboard_address=":0", silence_logs=logging.CRITICAL)
             scheduler = local.scheduler_address
@@ -96,6 +97,23 @@ def on_cluster(address: str, dashboard: bool = False):
         client.close()
         if local is not None:
             local.close()
+
+
+@contextmanager
+def _blas_variables_kept():
+    """This process's BLAS thread variables as they were before the block. Starting a LocalCluster
+    sets them to 1 here, for its workers; numpy's BLAS, already loaded, would keep its threads,
+    while `parallel.one_blas_thread` took the variables for the user's choice and stopped limiting
+    them: a later `compress` in this process wrote another archive than the command line's."""
+    before = {name: os.environ.get(name) for name in BLAS_THREAD_VARIABLES}
+    try:
+        yield
+    finally:
+        for name, value in before.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 @contextmanager

@@ -25,6 +25,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 import mocapzip
 from mocapzip import cluster
 from mocapzip.cli.main import main
+from mocapzip.defaults import BLAS_THREAD_VARIABLES
 from mocapzip.inputs.clip import ClipReader
 from mocapzip.inputs.discover import find_clips
 
@@ -258,3 +259,27 @@ def test_ctrl_c_in_a_terminal_ends_a_dask_run_in_one_line(shared_data, tmp_path)
         for _ in range(500):
             os.killpg(proc.pid, 0)
             time.sleep(0.02)
+
+
+def test_a_worker_with_two_threads_writes_the_same_archive(shared_data, tmp_path):
+    """`dask worker` runs a task per core on threads by default: both classes (02, and 07 and 09
+    pooled) start at once in one process, and the encoder keeps its state in its module. One class
+    at a time is coded there, and the archive is -j 2's."""
+    subjects = [shared_data / "cmu" / name for name in ("02", "07", "09")]
+    mocapzip.compress(subjects, tmp_path / "j2.mcz", jobs=2)
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=":0") as local:
+        summary = mocapzip.compress(subjects, tmp_path / "dask.mcz", dask=local.scheduler_address)
+    assert summary["clips"] == 30
+    assert len(mocapzip.archive.info(tmp_path / "dask.mcz")["classes"]) == 2
+    assert (tmp_path / "dask.mcz").read_bytes() == (tmp_path / "j2.mcz").read_bytes()
+
+
+def test_a_local_cluster_leaves_the_blas_variables_as_they_were(monkeypatch):
+    """Starting a LocalCluster sets the BLAS thread variables for its workers in this process too; a
+    later compress here would take them for the user's choice (`parallel.one_blas_thread`) and run
+    numpy's BLAS, already loaded, on every core: another archive than the command line's."""
+    for name in BLAS_THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    with cluster.on_cluster("local:1"):
+        assert not [name for name in BLAS_THREAD_VARIABLES if name in os.environ]
+    assert not [name for name in BLAS_THREAD_VARIABLES if name in os.environ]

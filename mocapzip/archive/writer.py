@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import threading
 import time
 import warnings
 from collections import Counter, defaultdict
@@ -554,12 +555,17 @@ def _coded_classes(classes: list[tuple[list[_Unit], CovarianceAccumulator | None
 
 def _coded_class(k: int):
     """In a Dask worker: class k coded there, on one core; its clips, kept by the worker's reader
-    while the class is coded, forgotten after."""
+    while the class is coded, forgotten after. A worker that runs tasks on several threads codes
+    one class at a time: `encode_class` keeps its state in its module (`encode._SHARED`)."""
     members, accumulator = _SHARED["classes"][k]
-    coded = encode_class(ClipsOnDemand(members, _load_unit), _SHARED["transform"], _SHARED["settings"], 1,
-                         accumulator)
+    with _ONE_CLASS_AT_A_TIME:
+        coded = encode_class(ClipsOnDemand(members, _load_unit), _SHARED["transform"], _SHARED["settings"], 1,
+                             accumulator)
     _CODING["reader"].forget([unit.source for unit in members])
     return coded
+
+
+_ONE_CLASS_AT_A_TIME = threading.Lock()
 
 
 _CODING: dict = {}  # the reader of the clips being coded, which the kept workers inherit (`_load_unit`)
