@@ -224,7 +224,8 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
                    "'mocapzip[dask]'; docs/cluster.md): a scheduler's address (tcp://host:8786), or local:N to "
                    "start N worker processes here. The workers read the clips themselves, by the paths found "
                    "here: the data must be on storage they share with this machine, at the same paths. This "
-                   "process writes the archive, byte-identical to -j's.")
+                   "process writes the archive, byte-identical to -j's where the workers run the same mcz, "
+                   "numpy and numba as here.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 @click.option("--skip-bad", is_flag=True,
               help="Leave out clips that cannot be read (listed on stderr, in --json and in the archive) "

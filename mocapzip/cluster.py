@@ -10,10 +10,11 @@ so the archive is byte-identical to `-j N`'s.
 
 A task's state is what a forked worker would have inherited: its function's module's `_SHARED`,
 and the module dicts named in `parallel.SHIPPED` (the encoder's clip loader). It is pickled once
-per map, scattered to every worker, and installed in a worker once per map, with the client's
-working folder as the worker's. Clips are never in it: workers read them again from the paths
-the client found, so the data must be on storage the workers share with the client, at the same
-paths. A `ClipReader` pickles without the clips it keeps (`ClipReader.__getstate__`).
+per map, scattered to every worker, and installed in a worker before its first task of the map,
+with the client's working folder as the worker's; a worker process runs one task at a time. Clips
+are not in it (except -c auto's, which compares every clip's poses): workers read them again from
+the paths the client found, so the data must be on storage the workers share with the client, at
+the same paths. A `ClipReader` pickles without the clips it keeps (`ClipReader.__getstate__`).
 
 Dask itself recovers from a lost worker: the scheduler gives its tasks to the others, and the
 state, scattered to every worker, survives in the rest. A task that keeps killing its workers
@@ -66,43 +67,68 @@ def parse_address(address: str) -> tuple[int | None, str | None]:
 def on_cluster(address: str, dashboard: bool = False):
     """Within the block, `parallel` maps run on the Dask cluster at `address` (`parse_address`):
     a scheduler already running, or a `LocalCluster` of N worker processes started here (and
-    stopped after), with its dashboard when `dashboard`. Yields the `Cluster`."""
+    stopped after; its dashboard on this machine only). Yields the `Cluster`. Dask's own log
+    lines are silenced meanwhile: what goes wrong ends the run with one line (`ClusterError`)."""
     workers, scheduler = parse_address(address)
     try:
         import dask
         import distributed
     except ImportError:
         raise ClusterError("--dask needs Dask's distributed scheduler: pip install 'mocapzip[dask]'") from None
-    local = None
+    with _blas_variables_kept(), _dask_logs_quiet():
+        local = client = None
+        try:
+            if workers is not None:
+                with dask.config.set(LOCAL_WORKER_CONFIG), _children_ignore_ctrl_c(), _blas_variables_kept():
+                    local = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                                     dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
+                scheduler = local.scheduler_address
+            client = distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False)
+            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            for opened in (client, local):
+                if opened is not None:
+                    opened.close()
+            what = "has no workers" if client is not None else "cannot be reached"
+            raise ClusterError(f"the Dask scheduler at {scheduler} {what} ({type(exc).__name__}: {exc})") from None
+        run = Cluster(client, local is not None)
+        parallel._CLUSTER.append(run)
+        try:
+            yield run
+            if local is None:  # a scheduler that outlives this run: its workers forget this run's state
+                try:
+                    client.run(_forget, run.state_ids, on_error="ignore")
+                except Exception:  # the archive is written: a worker gone by now changes nothing
+                    pass
+        finally:  # after an error or Ctrl-C, at once (a dead worker would hold up `client.run` for 30 s)
+            parallel._CLUSTER.pop()
+            run.bar.close()
+            client.close()
+            if local is not None:
+                local.close()
+
+
+@contextmanager
+def _dask_logs_quiet():
+    """Dask's loggers at CRITICAL for the block: a lost scheduler otherwise prints its traceback
+    (Dask sets some of its loggers' levels itself, so each is set, not only their parent)."""
+    names = [name for name in logging.root.manager.loggerDict if name.split(".")[0] == "distributed"]
+    loggers = [logging.getLogger(name) for name in ["distributed", *names]]
+    previous = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL)
     try:
-        if workers is not None:
-            with dask.config.set(LOCAL_WORKER_CONFIG), _children_ignore_ctrl_c(), _blas_variables_kept():
-                local = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                                 dashboard_address=":0", silence_logs=logging.CRITICAL)
-            scheduler = local.scheduler_address
-        client = distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False)
-    except (OSError, TimeoutError) as exc:
-        if local is not None:
-            local.close()
-        raise ClusterError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
-    run = Cluster(client, local is not None)
-    parallel._CLUSTER.append(run)
-    try:
-        yield run
-        if local is None:  # a scheduler that outlives this run: its workers forget the last map's state
-            client.run(_forget)
-    finally:  # after an error or Ctrl-C, at once (a dead worker would hold up `client.run` for 30 s)
-        parallel._CLUSTER.pop()
-        run.bar.close()
-        client.close()
-        if local is not None:
-            local.close()
+        yield
+    finally:
+        for logger, level in zip(loggers, previous):
+            logger.setLevel(level)
 
 
 @contextmanager
 def _blas_variables_kept():
-    """This process's BLAS thread variables as they were before the block. Starting a LocalCluster
-    sets them to 1 here, for its workers; numpy's BLAS, already loaded, would keep its threads,
+    """This process's BLAS thread variables as they were before the block (the cluster's start, and
+    the whole run: a nanny that restarts a worker sets them again). Each local worker a nanny starts
+    sets them to 1 here; numpy's BLAS, already loaded, would keep its threads,
     while `parallel.one_blas_thread` took the variables for the user's choice and stopped limiting
     them: a later `compress` in this process wrote another archive than the command line's."""
     before = {name: os.environ.get(name) for name in BLAS_THREAD_VARIABLES}
@@ -139,18 +165,19 @@ class Cluster:
         self.client, self.local = client, local
         self.bar = progress(total=0, desc="cluster", unit="task")
         self.submitted = self.done = 0  # tasks sent to the cluster, and those it has finished
+        self.state_ids: set[str] = set()  # of this run's maps (`_forget`)
         self._lock = threading.Lock()
 
     @property
     def workers(self) -> int:
-        """Worker threads the scheduler has now (each runs one task at a time)."""
-        return max(1, sum(self.client.nthreads().values()))
+        """Worker processes the scheduler has now (each runs one mcz task at a time)."""
+        return max(1, len(self.client.nthreads()))
 
     def describe(self) -> str:
         """One line for `-v`: where the work runs, and the dashboard if there is one."""
         kind = "a local cluster" if self.local else "the scheduler"
         link = self.client.dashboard_link if self.client.scheduler_info().get("services", {}).get("dashboard") else None
-        return (f"dask: {kind} at {self.client.scheduler.address}, {self.workers} worker threads; "
+        return (f"dask: {kind} at {self.client.scheduler.address}, {self.workers} workers; "
                 + (f"dashboard {link}" if link else "no dashboard (pip install bokeh, or start the scheduler with one)"))
 
     def map(self, function, items: list) -> list:
@@ -198,6 +225,7 @@ class Cluster:
         blob = pickle.dumps((os.getcwd(), {(module, name): dict(getattr(importlib.import_module(module), name))
                                            for module, name in shipped}), protocol=pickle.HIGHEST_PROTOCOL)
         state_id = uuid.uuid4().hex[:12]
+        self.state_ids.add(state_id)
         return self.client.scatter(blob, broadcast=True, hash=False), state_id
 
     def _outcome(self, future):
@@ -214,18 +242,21 @@ class Cluster:
 
 
 _INSTALLED = {"id": None, "dicts": []}  # in a worker: the state its module dicts hold now, and those dicts
-_INSTALLING = threading.Lock()  # a worker may run tasks on several threads
+# One task at a time in a worker process, whatever its threads: a task's state lives in module dicts
+# (and the encoder keeps its own in its module), which a task of another map, or of another run on
+# the same scheduler, would replace under it.
+_ONE_TASK_AT_A_TIME = threading.Lock()
 
 
 def _task(state_id: str, state: bytes, function, item):
-    """In a worker: the map's state installed (once per map), then `parallel._call`."""
-    with _INSTALLING:
+    """In a worker: the map's state installed (unless it is already), then `parallel._call`."""
+    with _ONE_TASK_AT_A_TIME:
         if _INSTALLED["id"] != state_id:
             installed = parallel._call(lambda blob: _install(*pickle.loads(blob)), state)
             if installed[2] is not None:  # the item's error, given at its turn
                 return installed
             _INSTALLED["id"] = state_id
-    return parallel._call(function, item)
+        return parallel._call(function, item)
 
 
 def _install(folder: str, state: dict) -> None:
@@ -246,8 +277,10 @@ def _install(folder: str, state: dict) -> None:
             _INSTALLED["dicts"].append(target)
 
 
-def _forget() -> None:
-    with _INSTALLING:
-        for target in _INSTALLED["dicts"]:
-            target.clear()
-        _INSTALLED.update(id=None, dicts=[])
+def _forget(state_ids: set) -> None:
+    """In a worker: its module dicts cleared if they hold one of `state_ids` (a run's), not another run's."""
+    with _ONE_TASK_AT_A_TIME:
+        if _INSTALLED["id"] in state_ids:
+            for target in _INSTALLED["dicts"]:
+                target.clear()
+            _INSTALLED.update(id=None, dicts=[])

@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import threading
 import time
 import warnings
 from collections import Counter, defaultdict
@@ -460,11 +459,10 @@ def _serialise_clips(interim: dict[str, bytes], coder: str, jobs: int = 1) -> tu
     if coder == "context":
         return coder, interim
     names = sorted(interim)
-    _SHARED["interim"] = interim  # the workers fork from here
+    priors = Priors.train(_interim_matrices(interim[name]) for name in progress(names, desc="priors", unit="clip"))
+    _SHARED["priors"] = priors  # the workers fork from here; each gets its clip's stream as its item
     try:
-        priors = Priors.train(_interim_matrices(name) for name in progress(names, desc="priors", unit="clip"))
-        _SHARED["priors"] = priors
-        primed = dict(zip(names, parallel_map(_primed_stream, names, jobs)))
+        primed = dict(zip(names, parallel_map(_primed_stream, [interim[name] for name in names], jobs)))
     finally:
         _SHARED.clear()
     primed["priors"] = encode_bytes(priors.encode())
@@ -473,15 +471,16 @@ def _serialise_clips(interim: dict[str, bytes], coder: str, jobs: int = 1) -> tu
     return "context", interim
 
 
-def _interim_matrices(name: str) -> list:
+def _interim_matrices(stream: bytes) -> list:
     """A clip's coefficient matrices, decoded from its stream as `encode_class` coded it (one
     clip at a time: the coefficients of all clips may be large)."""
-    return CodedClip.from_payload(_SHARED["interim"][name], INTERIM_CODER).matrices
+    return CodedClip.from_payload(stream, INTERIM_CODER).matrices
 
 
-def _primed_stream(name: str) -> bytes:
-    """A clip's stream coded again, its models starting from the archive's priors ("primed")."""
-    return CodedClip.from_payload(_SHARED["interim"][name], INTERIM_CODER).payload("primed", _SHARED["priors"])
+def _primed_stream(stream: bytes) -> bytes:
+    """A clip's stream (as `encode_class` coded it) coded again, its models starting from the
+    archive's priors ("primed")."""
+    return CodedClip.from_payload(stream, INTERIM_CODER).payload("primed", _SHARED["priors"])
 
 
 def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], class_names: list[str],
@@ -554,18 +553,14 @@ def _coded_classes(classes: list[tuple[list[_Unit], CovarianceAccumulator | None
 
 
 def _coded_class(k: int):
-    """In a Dask worker: class k coded there, on one core; its clips, kept by the worker's reader
-    while the class is coded, forgotten after. A worker that runs tasks on several threads codes
-    one class at a time: `encode_class` keeps its state in its module (`encode._SHARED`)."""
+    """In a Dask worker: class k coded there, on one core (a worker process runs one task at a
+    time: `cluster._task`); its clips, kept by the worker's reader while the class is coded,
+    forgotten after."""
     members, accumulator = _SHARED["classes"][k]
-    with _ONE_CLASS_AT_A_TIME:
-        coded = encode_class(ClipsOnDemand(members, _load_unit), _SHARED["transform"], _SHARED["settings"], 1,
-                             accumulator)
+    coded = encode_class(ClipsOnDemand(members, _load_unit), _SHARED["transform"], _SHARED["settings"], 1,
+                         accumulator)
     _CODING["reader"].forget([unit.source for unit in members])
     return coded
-
-
-_ONE_CLASS_AT_A_TIME = threading.Lock()
 
 
 _CODING: dict = {}  # the reader of the clips being coded, which the kept workers inherit (`_load_unit`)
