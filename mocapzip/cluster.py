@@ -24,6 +24,7 @@ goes away ends the run with `ClusterError`; an item's own error ends it as with 
 
 from __future__ import annotations
 
+import gc
 import importlib
 import logging
 import os
@@ -75,6 +76,11 @@ def on_cluster(address: str, dashboard: bool = False):
         import distributed
     except ImportError:
         raise ClusterError("--dask needs Dask's distributed scheduler: pip install 'mocapzip[dask]'") from None
+    if scheduler is not None:
+        try:  # checked before a Client is made: one that fails while it is made is collected later,
+            distributed.comm.get_address_host_port(scheduler)  # and its clean-up can deadlock another's start
+        except ValueError as exc:
+            raise ClusterError(f"the Dask scheduler at {scheduler} cannot be reached ({exc})") from None
     with _blas_variables_kept(), _dask_logs_quiet():
         local = client = None
         try:
@@ -90,7 +96,10 @@ def on_cluster(address: str, dashboard: bool = False):
                 if opened is not None:
                     opened.close()
             what = "has no workers" if client is not None else "cannot be reached"
-            raise ClusterError(f"the Dask scheduler at {scheduler} {what} ({type(exc).__name__}: {exc})") from None
+            message = f"the Dask scheduler at {scheduler} {what} ({type(exc).__name__}: {exc})"
+            del exc
+            gc.collect()  # a Client that failed while it was made is closed now, not during the next one's start
+            raise ClusterError(message) from None
         run = Cluster(client, local is not None)
         parallel._CLUSTER.append(run)
         try:
