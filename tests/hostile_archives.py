@@ -26,6 +26,7 @@ import limited
 from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.archive.dictionaries import dictionary
+from mocapzip.archive.skeletons import TEMPLATES_AND_NUMBERS, WHOLE_TEXTS, encode_skeletons, template_dictionary
 from mocapzip.codec.entropy.coefficients import Priors, encode_matrices
 from mocapzip.codec.lossless import encode_channels
 from mocapzip.codec.patches import FramePatches
@@ -164,8 +165,42 @@ def _json_stream(value) -> bytes:
 
 
 def _skeletons_stream(texts: list[bytes]) -> bytes:
-    """A `skeletons` stream of these ASF texts, as format 7 codes it (packed, zstd with the ASF dictionary)."""
+    """A `skeletons` stream of these texts in layout 0, whole texts (format 10: a layout byte, then
+    what formats 7 to 9 held: packed, zstd with the ASF dictionary)."""
+    return bytes([WHOLE_TEXTS]) + _packed_texts(texts)
+
+
+def _packed_texts(texts: list[bytes]) -> bytes:
     return entropy.encode_bytes(entropy.pack_blobs(texts), dictionary("asf.txt"))
+
+
+def _texts(stream: bytes) -> list[bytes]:
+    """The texts of a layout-0 `skeletons` stream."""
+    return entropy.unpack_blobs(entropy.decode_bytes(stream[1:], dictionary=dictionary("asf.txt")))
+
+
+def _predicted_skeletons(change: Callable[[bytes], bytes]) -> Callable[[dict, dict], None]:
+    """An edit that codes the skeletons in layout 1 (templates and numbers), then changes that stream."""
+
+    def edit(meta: dict, streams: dict) -> None:
+        texts = _texts(streams["skeletons"])
+        coded = encode_skeletons(texts, [entry.get("format") != "bvh" for entry in meta["skeletons"]])
+        assert coded[0] == TEMPLATES_AND_NUMBERS
+        streams["skeletons"] = change(coded)
+
+    return edit
+
+
+def _many_numbers(count: int) -> Callable[[bytes], bytes]:
+    """Layout 1 with one template of `count` numbers and a payload of zeros."""
+
+    def change(coded: bytes) -> bytes:
+        frame = entropy.encode_bytes(entropy.pack_blobs([b"\0" * count, b"x"]), template_dictionary())
+        head = bytearray([TEMPLATES_AND_NUMBERS])
+        entropy.write_varint(head, len(frame))
+        return bytes(head) + frame + bytes(64)
+
+    return change
 
 
 def _symlink_outside(out: Path) -> None:
@@ -197,7 +232,8 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("lossy_stream_shorter_than_its_frames", "lossy", _set("clips.0.frames", 100_000), "clip/00000",
                   decoded=True))
     c.append(Case("meta_unpacks_to_2GB", "lossy", _stream("meta", lambda: _zstd_bomb(2 << 30)), "meta"))
-    c.append(Case("skeletons_unpack_to_300MB", "lossless", _stream("skeletons", lambda: _zstd_bomb(300 << 20)), "skeletons"))
+    c.append(Case("skeletons_unpack_to_300MB", "lossless",
+                  _stream("skeletons", lambda: bytes([WHOLE_TEXTS]) + _zstd_bomb(300 << 20)), "skeletons"))
     c.append(Case("meta_fake_content_size", "lossy", _stream("meta", _fake_content_size(1 << 40)), "meta"))
     # 4. Meta of the wrong shape.
     for label, edit, section in (
@@ -300,8 +336,19 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("priors_missing", "lossy", _stream("priors", None), "priors: stream missing"))
     c.append(Case("skeletons_one_short", "lossless", _stream("skeletons", _skeletons_stream([b"x"])), "skeletons"))
     c.append(Case("skeletons_packed_wrong", "lossless",
-                  _stream("skeletons", lambda: entropy.encode_bytes(b"\x02\x05\x05hello", dictionary("asf.txt"))),
+                  _stream("skeletons", lambda: bytes([WHOLE_TEXTS]) + entropy.encode_bytes(b"\x02\x05\x05hello",
+                                                                                         dictionary("asf.txt"))),
                   "skeletons: data too short"))
+    # format 10's skeletons stream: an unknown layout; its numbers cut short, or one too many;
+    # a template of a million numbers in 64 bytes (a reader refuses it before decoding any)
+    c.append(Case("skeletons_layout_unknown", "lossless", _stream("skeletons", lambda: b"\x07" + _packed_texts([b"x"])),
+                  "skeletons: unknown skeletons layout 7"))
+    c.append(Case("skeleton_numbers_cut", "lossless", _predicted_skeletons(lambda coded: coded[:-3]), "skeletons: "))
+    c.append(Case("skeleton_numbers_one_byte_more", "lossless", _predicted_skeletons(lambda coded: coded + b"\0"),
+                  "skeletons: "))
+    c.append(Case("skeleton_numbers_a_million", "lossless", _predicted_skeletons(_many_numbers(10**6)),
+                  "skeletons: 1,000,000 skeleton numbers (at most 262,144)"))
+    c.append(Case("skeleton_numbers_of_zeros", "lossless", _predicted_skeletons(_many_numbers(200_000)), "skeletons: "))
     c.append(Case("skeleton_not_asf", "lossy", _stream("skeletons", _skeletons_stream([b"hello", b"hello"])),
                   "skeletons: skeleton 0", decoded=True))
     # 6. BVH clips (format 8): the format-8 base without its AMC clips, so the BVH clip is clip 0.
@@ -362,8 +409,7 @@ def _skeleton_0(text: Callable[[], bytes]) -> Callable[[dict, dict], None]:
     """An edit that replaces skeleton 0 (the BVH hierarchy) with `text`, the ASF skeletons kept."""
 
     def edit(meta: dict, streams: dict) -> None:
-        blobs = entropy.unpack_blobs(entropy.decode_bytes(streams["skeletons"], dictionary=dictionary("asf.txt")))
-        streams["skeletons"] = _skeletons_stream([text(), *blobs[1:]])
+        streams["skeletons"] = _skeletons_stream([text(), *_texts(streams["skeletons"])[1:]])
 
     return edit
 
@@ -398,6 +444,7 @@ def build(case: Case, archive: Path) -> None:
         streams = {name: reader.read(name) for name in reader.names()}
     meta = json.loads(entropy.decode_bytes(streams["meta"], dictionary=dictionary("meta.json")))
     original_meta = streams["meta"]
+    streams["skeletons"] = bytes([WHOLE_TEXTS]) + streams["skeletons"]  # the bases are formats 7 to 9
     case.edit(meta, streams)
     if "meta" in streams and streams["meta"] == original_meta:  # the edit changed meta's fields
         streams["meta"] = _json_stream(meta)

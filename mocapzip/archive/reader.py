@@ -21,6 +21,7 @@ from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
 from mocapzip.archive.meta import parse_json
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.settings import Settings
+from mocapzip.archive.skeletons import decode_skeletons
 from mocapzip.classes.segment import coded_range, join_decoded
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
@@ -35,6 +36,7 @@ from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
 from mocapzip.formats.text import MAX_ABS_VALUE, write_file_atomically
+from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.parallel import imap, one_blas_thread
@@ -87,13 +89,18 @@ class Archive:
         except (ValueError, RecursionError) as exc:  # also bad UTF-8, bad JSON and JSON nested too deep
             raise ArchiveError(f"{name}: {exc}", self.path) from exc
 
-    def _unpacked(self, name: str) -> bytes:
-        """Stream `meta` or `skeletons` unzstd'd: with its dictionary from format 7 on."""
-        used = dictionary(STREAM_DICTIONARIES[name]) if self.format_version >= 7 else None
+    def _stream(self, name: str) -> bytes:
         try:
-            return decode_bytes(self._reader.read(name), dictionary=used)
+            return self._reader.read(name)
         except KeyError:
             raise ArchiveError(f"{name}: stream missing", self.path) from None
+
+    def _unpacked(self, name: str) -> bytes:
+        """Stream `meta` or `skeletons` (formats 1 to 9) unzstd'd: with its dictionary from format 7 on."""
+        used = dictionary(STREAM_DICTIONARIES[name]) if self.format_version >= 7 else None
+        data = self._stream(name)
+        try:
+            return decode_bytes(data, dictionary=used)
         except ValueError as exc:
             raise ArchiveError(f"{name}: {exc}", self.path) from exc
 
@@ -110,7 +117,15 @@ class Archive:
     def _skeletons(self) -> list[str]:
         """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
         count = len(self.meta["skeletons"])
-        if self.format_version >= 7:  # packed bytes: every byte is a Latin-1 character
+        if self.format_version >= 10:  # templates and numbers (archive/skeletons.py)
+            is_asf = [record.get("format") != "bvh" for record in self.meta["skeletons"]]
+            try:
+                texts = [blob.decode("latin-1") for blob in
+                         decode_skeletons(self._stream("skeletons"), is_asf, MAX_DECODED_STREAM_BYTES)]
+            except ValueError as exc:
+                raise ArchiveError(f"skeletons: {exc}", self.path) from exc
+            valid = len(texts) == count
+        elif self.format_version >= 7:  # packed bytes: every byte is a Latin-1 character
             try:
                 texts = [blob.decode("latin-1") for blob in unpack_blobs(self._unpacked("skeletons"))]
             except ValueError as exc:

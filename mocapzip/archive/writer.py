@@ -1,8 +1,9 @@
-"""`mcz compress`: clips on disk -> the streams of one .mcz archive (format 7).
+"""`mcz compress`: clips on disk -> the streams of one .mcz archive (format 10).
 
 Streams (see docs/format.md, "Streams written by the codec"):
   meta        zstd JSON (dictionary meta.json): settings, skeleton and class tables, one row per clip
-  skeletons   zstd of the ASF files and BVH hierarchies, byte for byte, packed (dictionary asf.txt: family templates)
+  skeletons   the ASF files and BVH hierarchies, byte for byte: the text between numbers by zstd, the numbers
+              predicted from an earlier skeleton or a family template and range coded (archive/skeletons.py)
   class/NNNN  a class's quantised PCA mean and basis (lossy mode)
   priors      zstd bytes: where the clip streams' models start (coefficient coder "primed")
   clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
@@ -24,6 +25,7 @@ from dataclasses import asdict, dataclass, field, replace
 from mocapzip import __version__
 from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
 from mocapzip.archive.meta import validate as validate_meta
+from mocapzip.archive.skeletons import encode_skeletons
 from mocapzip.archive.settings import Settings, checked
 from mocapzip.classes.auto import auto_classes, parse_auto
 from mocapzip.classes.by_name import class_namer, pooled_classes
@@ -138,14 +140,15 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         order = ["meta", "skeletons", *sorted(writer.names)]
         # Checked as every reader checks them: compress never writes an archive a reader refuses.
         validate_meta(meta, order, os.fspath(output), FORMAT_VERSION)
-        unpacked = {"meta": json.dumps(meta, sort_keys=True).encode(),
-                    "skeletons": pack_blobs(_skeleton_bytes(p, skeletons[p], reader) for p in skeleton_paths)}
+        texts = [_skeleton_bytes(p, skeletons[p], reader) for p in skeleton_paths]
+        unpacked = {"meta": json.dumps(meta, sort_keys=True).encode(), "skeletons": pack_blobs(texts)}
         for name, data in unpacked.items():
             if len(data) > MAX_DECODED_STREAM_BYTES:
                 raise MocapFormatError(f"the archive's {name} would take {len(data):,} bytes, more than the "
                                        f"{MAX_DECODED_STREAM_BYTES:,} a reader accepts: compress fewer clips at once",
                                        output)
-            writer.add(name, encode_bytes(data, dictionary(STREAM_DICTIONARIES[name])))
+        writer.add("meta", encode_bytes(unpacked["meta"], dictionary(STREAM_DICTIONARIES["meta"])))
+        writer.add("skeletons", encode_skeletons(texts, [not isinstance(skeletons[p], BvhSkeleton) for p in skeleton_paths]))
         size = writer.commit(order)
     frames = sum(r["frames"] for r in rows)
     largest_mean = max(r["error_cm"] for r in rows)

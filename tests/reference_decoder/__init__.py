@@ -4,13 +4,15 @@ It shares no code with mocapzip: tests/test_reference_decoder.py decodes archive
 compares, so a reader of the spec can trust that the spec, not the package, defines the format.
 The parts follow the spec's chapters: `container` (layout, index, checksums), `streams` (lossy
 codec streams, byte level), `lossless` (lossless clip streams), `geometry` (decoding a lossy
-clip from coefficients to AMC values) and `bvh` (decoding a BVH clip, format 8 on). Trusted test
+clip from coefficients to AMC values), `bvh` (decoding a BVH clip, format 8 on) and `skeletons`
+(the `skeletons` stream, format 10 on). Trusted test
 input only: it raises ValueError on what it checks, but it is not hardened against crafted files
 as mocapzip is.
 """
 
 from . import bvh, geometry, lossless, streams
 from .container import Container, read_meta, read_skeletons
+from .skeletons import read_skeletons as skeleton_files
 
 
 def bvh_hierarchies(meta, skeletons, version) -> dict:
@@ -38,7 +40,10 @@ def decode_archive(path, bvh_clips: dict | None = None) -> dict:
     with Container(path) as container:
         version = container.format_version
         meta = read_meta(container.read("meta"), version)
-        skeletons = read_skeletons(container.read("skeletons"), version)
+        if version >= 10:
+            skeletons = [text.decode("latin-1") for text in skeleton_files(container.read("skeletons"), meta)]
+        else:
+            skeletons = read_skeletons(container.read("skeletons"), version)
         hierarchies = bvh_hierarchies(meta, skeletons, version)
         settings = meta["settings"]
         values = {}
