@@ -1,4 +1,4 @@
-"""Write the zstd dictionaries of format 7 (mocapzip/archive/dictionaries/). Run by hand, once.
+"""Write the dictionaries of formats 7 and 10 (mocapzip/archive/dictionaries/). Run by hand, once.
 
 They are format constants, like the golden files: never regenerated, since every format-7
 archive's `meta` and `skeletons` streams refer to their bytes (docs/format.md, "Dictionaries").
@@ -10,6 +10,9 @@ This script says where they came from:
   family's names, hierarchy, dofs, axes, limits and its common values, and no one subject's
   own measurements. CMU comes twice, with LF and with CRLF line ends (both occur); the most
   common family comes last, where zstd reaches it with the shortest offsets.
+- `asf_means.txt` (format 10): `asf.txt` with, where no two members agree, the family's mean
+  (6 significant digits) instead of 0. It is no dictionary of zstd's: an archive's first skeleton
+  of a family has its numbers predicted from it (mocapzip/archive/skeletons.py).
 - `meta.json`, a meta template: the meta of two one-clip archives written by this project's
   compress (a CMU clip, 124_02 part 1 from cmu-edited, and HDM05's first bd clip), which holds
   the keys, settings and the bone orders of both families.
@@ -28,9 +31,10 @@ OUT = ROOT / "mocapzip" / "archive" / "dictionaries"
 NUMBER = re.compile(rb"[-+]?[0-9][0-9.eE+-]*")
 
 
-def family_template(texts: list[bytes]) -> bytes:
+def family_template(texts: list[bytes], means: bool = False) -> bytes:
     """What the LF-ended `texts` share: the text between numbers (which must be the same in all),
-    and each number the value two or more of them print there, else 0."""
+    and each number the value two or more of them print there, else 0 (`means`: else their
+    mean, printed to 6 significant digits)."""
     pieces = [NUMBER.split(text) for text in texts]
     numbers = [NUMBER.findall(text) for text in texts]
     if any(p != pieces[0] for p in pieces) or any(len(n) != len(numbers[0]) for n in numbers):
@@ -38,16 +42,24 @@ def family_template(texts: list[bytes]) -> bytes:
     out = []
     for i, between in enumerate(pieces[0][:-1]):
         value, count = Counter(n[i] for n in numbers).most_common(1)[0]
-        out += [between, value if count >= 2 else b"0"]
+        if count < 2:
+            value = b"%.6g" % (sum(float(n[i]) for n in numbers) / len(numbers)) if means else b"0"
+        out += [between, value]
     return b"".join([*out, pieces[0][-1]])
 
 
-def asf_templates() -> bytes:
+def asf_templates(means: bool = False) -> bytes:
     def family(pattern: str) -> bytes:
-        return family_template([p.read_bytes().replace(b"\r\n", b"\n") for p in sorted(DATA.glob(pattern))])
+        return family_template([p.read_bytes().replace(b"\r\n", b"\n") for p in sorted(DATA.glob(pattern))], means)
 
     cmu = family("cmu/*/*.asf")
     return family("hdm05/*/*.asf").replace(b"\n", b"\r\n") + cmu + cmu.replace(b"\n", b"\r\n")
+
+
+def asf_means() -> bytes:
+    """Format 10's `asf_means.txt`: `asf.txt` with each number no two members agree on (0 there)
+    the family's mean instead, what a first skeleton's numbers are predicted from."""
+    return asf_templates(means=True)
 
 
 def meta_template() -> bytes:
@@ -69,10 +81,11 @@ def meta_template() -> bytes:
 
 
 if __name__ == "__main__":
-    for name, make in (("asf.txt", asf_templates), ("meta.json", meta_template)):
+    for name, make in (("asf.txt", asf_templates), ("meta.json", meta_template), ("asf_means.txt", asf_means)):
         path = OUT / name
         if path.exists():
-            sys.exit(f"{path} exists: the dictionaries are frozen with format 7")
+            print(f"{path} exists: frozen with its format")
+            continue
         data = make()
         path.write_bytes(data)
         print(f"wrote {path} ({len(data)} bytes)")

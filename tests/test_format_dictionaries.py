@@ -1,4 +1,5 @@
-"""Format 7's zstd dictionaries: frozen, checked, made as their script says, and worth their bytes."""
+"""Format 7's zstd dictionaries and format 10's skeleton means: frozen, checked, made as their script
+says, and worth their bytes."""
 
 from __future__ import annotations
 
@@ -25,6 +26,10 @@ def test_the_asf_templates_are_what_their_script_makes_from_the_shared_data(shar
     assert load_script().asf_templates() == dictionary("asf.txt")
 
 
+def test_the_family_means_are_what_their_script_makes_from_the_shared_data(shared_data):
+    assert load_script().asf_means() == dictionary("asf_means.txt")
+
+
 def test_every_shared_skeleton_round_trips_and_costs_far_less_with_the_templates(shared_data):
     paths = sorted(shared_data.glob("cmu/*/*.asf")) + sorted(shared_data.glob("hdm05/*/*.asf"))
     assert len(paths) == 16
@@ -49,7 +54,7 @@ def test_a_damaged_dictionary_stops_with_a_clear_error(monkeypatch, tmp_path):
     monkeypatch.setattr(dictionaries.resources, "files", lambda package: tmp_path)
     dictionary.cache_clear()
     try:
-        with pytest.raises(RuntimeError, match="zstd dictionary meta.json is not the one format 7 defines"):
+        with pytest.raises(RuntimeError, match="dictionary meta.json is not the one the format defines"):
             dictionary("meta.json")
     finally:
         monkeypatch.undo()

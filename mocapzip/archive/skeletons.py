@@ -3,8 +3,8 @@
 Why: an ASF is given back byte for byte, and after format 7's dictionary what a CMU skeleton
 still cost (about 415 B after the archive's first) was its numbers: about 100 of them differ
 between two subjects, and zstd spends about 4 bits on each printed digit. Here every number is
-predicted from the same number in a reference (the archive's last earlier skeleton with as many
-numbers, else the family template of `dictionaries/asf.txt`), and an ASF bone's direction, a
+predicted from the same number in a reference (the archive's last earlier skeleton like it, else
+the family's means, `dictionaries/asf_means.txt`), and an ASF bone's direction, a
 unit vector, gives its largest component from the other two. Only the residuals are coded, by
 the binary range coder's adaptive models; the text around the numbers, with each number a NUL
 byte, goes to zstd with the dictionary made the same way. docs/format.md ("The `skeletons`
@@ -37,7 +37,8 @@ SECTION = re.compile(rb"(?m)^# AST/ASF file generated")
 MAX_DIGITS = 40
 MAX_DECIMALS = 30
 MAX_NUMBERS = 1 << 18  # in all of a stream's templates: decoding takes about 7 us a number, so at most 2 s
-MAX_SCALE_GAP = 30  # a reference more than this many decimal places away predicts 0
+MAX_SCALE_GAP = 30
+CANDIDATES_EARLIER = 8  # a reference more than this many decimal places away predicts 0
 _LARGEST = 10**MAX_DIGITS  # a prediction this large or larger is 0 instead
 _BIT_LENGTHS = 136  # |residual| < 2 x 10**40 < 2**136
 _UNKNOWN = _BIT_LENGTHS + 1
@@ -111,14 +112,25 @@ def template_dictionary() -> bytes:
     return split_numbers(dictionary("asf.txt"))[0]
 
 
-@functools.cache
-def _dictionary_sections() -> tuple[tuple[bytes, tuple[Number, ...]], ...]:
-    """Each family template in `asf.txt` (a section per `# AST/ASF file generated` line) as
-    (template, numbers): what a skeleton no earlier one in the archive resembles is predicted from."""
-    text = dictionary("asf.txt")
+def _sections(name: str) -> list[tuple[bytes, list[Number]]]:
+    text = dictionary(name)
     starts = [m.start() for m in SECTION.finditer(text)] + [len(text)]
-    return tuple((template, tuple(numbers)) for template, numbers in
-                 (split_numbers(text[a:b]) for a, b in zip(starts, starts[1:])))
+    return [split_numbers(text[a:b]) for a, b in zip(starts, starts[1:])]
+
+
+@functools.cache
+def _family_references() -> tuple[_Reference, ...]:
+    """Each family of `asf.txt` (a section per `# AST/ASF file generated` line): its template,
+    and its numbers as `asf_means.txt` prints them (the family's mean where `asf.txt` has 0, as no
+    two members agree), hinted unknown where the two files differ. What a skeleton no earlier one
+    in the archive resembles is predicted from."""
+    references = []
+    for (template, shared), (same, means) in zip(_sections("asf.txt"), _sections("asf_means.txt"), strict=True):
+        if same != template:
+            raise RuntimeError("mocapzip is damaged: asf.txt and asf_means.txt differ between their numbers")
+        hints = tuple(0 if a.text() == b.text() else _UNKNOWN for a, b in zip(shared, means))
+        references.append(_Reference(template, tuple(means), hints))
+    return tuple(references)
 
 
 def _directions(template: bytes) -> list[int]:
@@ -137,19 +149,13 @@ class _Reference:
     hints: tuple[int, ...]
 
 
-def _reference(template: bytes, earlier: list[_Reference]) -> _Reference | None:
-    """The latest earlier skeleton with this template, else with as many numbers; else such a
-    family template of `asf.txt`, the same text first; else none."""
+def _candidates(template: bytes, earlier: list[_Reference]) -> list[_Reference]:
+    """What a skeleton may be predicted from, for the encoder to choose: the latest
+    CANDIDATES_EARLIER earlier skeletons with as many numbers (latest first), then the families
+    of `asf_means.txt` with as many (HDM05's template is also CMU's with CRLF line ends)."""
     count = template.count(PLACEHOLDER)
-    for alike in (lambda t: t == template, lambda t: t.count(PLACEHOLDER) == count):
-        for coded in reversed(earlier):
-            if alike(coded.template):
-                return coded
-    for alike in (lambda t: t == template, lambda t: t.count(PLACEHOLDER) == count):
-        for section, numbers in _dictionary_sections():
-            if alike(section):
-                return _Reference(section, numbers, tuple(0 if n.mantissa else _UNKNOWN for n in numbers))
-    return None
+    alike = [coded for coded in reversed(earlier) if len(coded.numbers) == count][:CANDIDATES_EARLIER]
+    return alike + [family for family in _family_references() if len(family.numbers) == count]
 
 
 def _context(hint: int) -> int:
@@ -190,7 +196,7 @@ class _Models:
     kind of integer (is it 0, its sign, its bit length in unary, then its lower bits direct)."""
 
     FLAGS = {"scientific": 3, "negative_zero": 1, "capital": 2, "plus": 1}
-    INTEGERS = ("decimals", "exponent", "width")
+    INTEGERS = ("decimals", "exponent", "width", "reference")
 
     def __init__(self):
         self.flags = {name: new_models(n) for name, n in self.FLAGS.items()}
@@ -255,6 +261,17 @@ class _Coder:
         self.order = [i for i in range(self.count) if i not in self.derived]
         for i, (_, later) in self.derived.items():
             self.order.insert(self.order.index(later) + 1, i)
+
+    def cost(self, numbers: list[Number]) -> int:
+        """About how many bits coding `numbers` against this reference takes: what the encoder
+        chooses a reference by (the models' state left aside)."""
+        bits = 0
+        for i in self.order:
+            self.numbers[i] = numbers[i]
+            ref = self._shape_reference(i)
+            bits += abs(numbers[i].mantissa - self._predicted(i, numbers[i])).bit_length()
+            bits += 8 * (ref is None or (ref.decimals, ref.letter) != (numbers[i].decimals, numbers[i].letter))
+        return bits
 
     def coded(self) -> _Reference:
         return _Reference(self.template, tuple(self.numbers), tuple(self.lengths))
@@ -329,7 +346,13 @@ def encode_skeletons(texts: list[bytes], is_asf: list[bool]) -> bytes:
     frame = encode_bytes(pack_blobs(template for template, _ in split), template_dictionary())
     encoder, models, done = Encoder(), _Models(), []
     for (template, numbers), asf in zip(split, is_asf):
-        coder = _Coder(template, asf, _reference(template, done), models)
+        candidates = _candidates(template, done)
+        coder = _Coder(template, asf, None, models)
+        if candidates:
+            costs = [_Coder(template, asf, reference, models).cost(numbers) for reference in candidates]
+            choice = costs.index(min(costs))
+            _put_int(encoder, models.integers["reference"], choice)
+            coder = _Coder(template, asf, candidates[choice], models)
         for i in coder.order:
             coder.put(encoder, i, numbers[i])
         done.append(coder.coded())
@@ -364,7 +387,13 @@ def _predicted_texts(reader: ByteReader, is_asf: list[bool], limit: int) -> list
         raise ValueError(f"{count:,} skeleton numbers (at most {MAX_NUMBERS:,})")
     decoder, models, texts, done, size = Decoder(reader.take(reader.remaining())), _Models(), [], [], 0
     for template, asf in zip(templates, is_asf):
-        coder = _Coder(template, asf, _reference(template, done), models)
+        candidates, reference = _candidates(template, done), None
+        if candidates:
+            choice = _get_int(decoder, models.integers["reference"])
+            if not 0 <= choice < len(candidates):
+                raise ValueError(f"skeleton {len(texts)}: reference {choice} of {len(candidates)}")
+            reference = candidates[choice]
+        coder = _Coder(template, asf, reference, models)
         for i in coder.order:
             coder.get(decoder, i)
         text = join_numbers(template, coder.numbers)

@@ -24,6 +24,7 @@ DICTIONARY_FOLDER = Path(__file__).resolve().parents[2] / "mocapzip" / "archive"
 DICTIONARY_SHA256 = {
     "asf.txt": "fc1669c1f3b42e1772cee8bfc43dd38ffa339970400e0fb6d09b25a74346f0ef",
     "meta.json": "4ce94dcc42a74062fd57a71db99d5c118ed2eb70fbe6a4a41f61a7e337a5cdf8",
+    "asf_means.txt": "250c96c61d427606d0ca1014c01548e0cfc91fc3c016ccb8965dc660882b9432",
 }
 
 

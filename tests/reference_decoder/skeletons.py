@@ -45,10 +45,18 @@ def printed(n: dict) -> bytes:
     return text.encode()
 
 
-def sections() -> list:
-    text = dictionary("asf.txt")
+def sections(name: str) -> list:
+    text = dictionary(name)
     cuts = [m.start() for m in SECTION.finditer(text)] + [len(text)]
     return [templated(text[a:b]) for a, b in zip(cuts, cuts[1:])]
+
+
+def families() -> list:
+    out = []
+    for (template, shared), (_, means) in zip(sections("asf.txt"), sections("asf_means.txt")):
+        hints = [0 if printed(a) == printed(b) else UNKNOWN for a, b in zip(shared, means)]
+        out.append({"template": template, "numbers": means, "hints": hints})
+    return out
 
 
 def read_int(rc: RangeDecoder, P: list) -> int:
@@ -92,17 +100,9 @@ def prediction(i, n, numbers, R, companions) -> int:
     return 0 if abs(p) >= 10**40 else p
 
 
-def reference(T: bytes, earlier: list) -> dict | None:
+def candidates(T: bytes, earlier: list) -> list:
     C = T.count(b"\0")
-    for same in (lambda t: t == T, lambda t: t.count(b"\0") == C):
-        for R in reversed(earlier):
-            if same(R["template"]):
-                return R
-    for same in (lambda t: t == T, lambda t: t.count(b"\0") == C):
-        for template, numbers in sections():
-            if same(template):
-                return {"template": template, "numbers": numbers, "hints": [0 if n["m"] else UNKNOWN for n in numbers]}
-    return None
+    return [R for R in reversed(earlier) if len(R["numbers"]) == C][:8] + [F for F in families() if len(F["numbers"]) == C]
 
 
 def decode_template(rc, P, T: bytes, is_asf: bool, R) -> dict:
@@ -165,11 +165,17 @@ def read_skeletons(data: bytes, meta: dict) -> list:
             raise ValueError("skeletons: not as many as meta lists, or over 2^18 numbers")
         rc = RangeDecoder(reader.rest(), 4)
         P = {"scientific": [1024] * 3, "capital": [1024] * 2, "plus": [1024], "negative_zero": [1024],
-             "decimals": [1024] * 138, "exponent": [1024] * 138, "width": [1024] * 138,
+             "decimals": [1024] * 138, "exponent": [1024] * 138, "width": [1024] * 138, "reference": [1024] * 138,
              "mantissa": [[1024] * 138 for _ in range(4)]}
         earlier, files = [], []
         for T, asf in zip(templates, is_asf):
-            coded = decode_template(rc, P, T, asf, reference(T, earlier))
+            options, R = candidates(T, earlier), None
+            if options:
+                choice = read_int(rc, P["reference"])
+                if not 0 <= choice < len(options):
+                    raise ValueError("skeletons: no such reference")
+                R = options[choice]
+            coded = decode_template(rc, P, T, asf, R)
             earlier.append(coded)
             pieces = T.split(b"\0")
             files.append(pieces[0] + b"".join(printed(n) + piece for n, piece in zip(coded["numbers"], pieces[1:])))

@@ -1,4 +1,5 @@
-"""The zstd dictionaries of format 7's `meta` and `skeletons` streams (docs/format.md, "Dictionaries").
+"""The zstd dictionaries of format 7's `meta` and `skeletons` streams (docs/format.md, "Dictionaries"),
+and format 10's family means of skeleton numbers.
 
 A one-clip archive spent more on its skeleton (1.5 KB) and meta (0.7 KB) than on its motion:
 zstd has nothing to refer back to in a single small text. These raw-content dictionaries give it
@@ -19,14 +20,17 @@ STREAM_DICTIONARIES = {"meta": "meta.json", "skeletons": "asf.txt"}
 SHA256 = {
     "asf.txt": "fc1669c1f3b42e1772cee8bfc43dd38ffa339970400e0fb6d09b25a74346f0ef",
     "meta.json": "4ce94dcc42a74062fd57a71db99d5c118ed2eb70fbe6a4a41f61a7e337a5cdf8",
+    # format 10: no zstd dictionary but the numbers an archive's first skeleton is predicted from
+    "asf_means.txt": "250c96c61d427606d0ca1014c01548e0cfc91fc3c016ccb8965dc660882b9432",
 }
 
 
 @functools.cache
 def dictionary(name: str) -> bytes:
-    """The bytes of dictionary `name` ("asf.txt" for `skeletons`, "meta.json" for `meta`), checked:
+    """The bytes of dictionary `name` ("asf.txt" for `skeletons`, "meta.json" for `meta`,
+    "asf_means.txt" for format 10's `skeletons` numbers), checked:
     an install with a damaged copy would write archives no other reader decodes."""
     data = resources.files(__package__).joinpath(name).read_bytes()
     if hashlib.sha256(data).hexdigest() != SHA256[name]:
-        raise RuntimeError(f"mocapzip is damaged: its zstd dictionary {name} is not the one format 7 defines")
+        raise RuntimeError(f"mocapzip is damaged: its dictionary {name} is not the one the format defines")
     return data
