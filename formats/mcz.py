@@ -60,9 +60,11 @@ def _legacy_header_crc(format_version: int, tool_version: str, index_crc32: int)
 
 def write_archive(
     path: str | os.PathLike, streams: Mapping[str, bytes | SpooledStream], *, tool_version: str,
-    overwrite: bool = False
+    overwrite: bool = False, contents: dict | None = None
 ) -> int:
     """Write `streams` (in iteration order) to `path` atomically; return the file size in bytes.
+    `contents`, a JSON object, goes into the index for people and stock HDF5 tools to read
+    (format 10 on; readers never rely on it).
 
     The file is built under a temporary name in the same directory, fsynced, then renamed over
     `path`, so readers never see half an archive and a failure leaves nothing behind.
@@ -75,7 +77,7 @@ def write_archive(
         file = _HDF5Output(tmp, "x+")  # O_EXCL: never opens an existing name, nor follows a planted symlink
         try:
             with file:
-                _write_hdf5(file, streams, tool_version)
+                _write_hdf5(file, streams, tool_version, contents)
                 if file.error:
                     raise file.error
                 os.fsync(file.fileno())
@@ -202,12 +204,13 @@ class ArchiveWriter:
         """Names of the streams added so far, in the order they came."""
         return list(self._streams)
 
-    def commit(self, order: list[str]) -> int:
-        """Write the archive with every added stream, in `order`; return its size (see `write_archive`)."""
+    def commit(self, order: list[str], contents: dict | None = None) -> int:
+        """Write the archive with every added stream, in `order`, and `contents` in its index;
+        return its size (see `write_archive`)."""
         if sorted(order) != sorted(self._streams):
             raise ValueError("the order must name every added stream once")
         return write_archive(self.path, {name: self._streams[name] for name in order},
-                             tool_version=self._tool_version, overwrite=self._overwrite)
+                             tool_version=self._tool_version, overwrite=self._overwrite, contents=contents)
 
     def close(self) -> None:
         # The spool's bytes are thrown away: failing to flush them (a full disk) must not hide the
@@ -229,7 +232,8 @@ def _check_stream(name, value) -> None:
         raise TypeError(f"stream {name!r} must be bytes, got {type(value).__name__}")
 
 
-def _write_hdf5(file: _HDF5Output, streams: Mapping[str, bytes | SpooledStream], tool_version: str) -> None:
+def _write_hdf5(file: _HDF5Output, streams: Mapping[str, bytes | SpooledStream], tool_version: str,
+                contents: dict | None) -> None:
     # meta_block_size=0 and "all metadata before any raw data" keep HDF5 from leaving 2 KB
     # half-empty aggregation blocks inside the file: the empty archive shrinks from ~2 KB to ~1 KB.
     with h5py.File(file, "x", libver="latest", track_order=False, meta_block_size=0) as f:
@@ -244,7 +248,11 @@ def _write_hdf5(file: _HDF5Output, streams: Mapping[str, bytes | SpooledStream],
             "lengths": lengths,
             "crc32": [v.crc32 if isinstance(v, SpooledStream) else zlib.crc32(v) for v in values],
         }
-        index = json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode()
+        if contents is not None:
+            index_doc["contents"] = contents
+        # A file name read from disk may hold undecodable bytes as lone surrogates: written as
+        # JSON escapes (\udcXX), the only text UTF-8 cannot hold, they read back as they were.
+        index = json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode("utf-8", "backslashreplace")
         if len(index) > MAX_INDEX_BYTES:  # readers refuse it: never write it
             raise ValueError(f"the index of {len(items)} streams exceeds {MAX_INDEX_BYTES} bytes")
 
@@ -355,6 +363,7 @@ class ArchiveReader:
 
     def __init__(self, path: str | os.PathLike):
         self.path = os.fspath(path)
+        self.contents: dict | None = None  # the index's `contents` (format 10 on): for people, never relied on
         # A missing file or no permission: the plain OSError, not "damaged". A FIFO or a device
         # (symbolic links followed) is refused without blocking: HDF5 would wait on it forever.
         with open_regular_file(self.path) as file:
@@ -458,8 +467,12 @@ class ArchiveReader:
             if len(index) != size or zlib.crc32(index) != f.attrs["index_crc32"]:
                 raise self._error("index: CRC32 mismatch")
             doc = json.loads(index)
+        self.contents = doc.pop("contents", None) if isinstance(doc, dict) and self.format_version >= 10 else None
         if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
-            raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}")
+            raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}"
+                              + (" (and contents)" if self.format_version >= 10 else ""))
+        if self.contents is not None and not isinstance(self.contents, dict):
+            raise self._error("index: contents is not a JSON object")
         tool = doc["tool"]
         if not isinstance(tool, str) or not tool or "\0" in tool:
             raise self._error("index: tool must be a non-empty string without NUL")

@@ -26,6 +26,7 @@ import limited
 from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.archive.dictionaries import dictionary
+from mocapzip.archive.meta import contents_of
 from mocapzip.archive.skeletons import TEMPLATES_AND_NUMBERS, WHOLE_TEXTS, encode_skeletons, template_dictionary
 from mocapzip.codec.entropy.coefficients import Priors, encode_matrices
 from mocapzip.codec.lossless import encode_channels
@@ -448,7 +449,15 @@ def build(case: Case, archive: Path) -> None:
     case.edit(meta, streams)
     if "meta" in streams and streams["meta"] == original_meta:  # the edit changed meta's fields
         streams["meta"] = _json_stream(meta)
-    write_archive(archive, streams, tool_version="hostile", overwrite=True)
+    write_archive(archive, streams, tool_version="hostile", overwrite=True, contents=_contents(meta))
+
+
+def _contents(meta: dict) -> dict | None:
+    """The index's clips table as compress writes it, where the (edited) meta still has one."""
+    try:
+        return contents_of(meta)
+    except (KeyError, IndexError, TypeError):
+        return None
 
 
 def run_mcz(*args: str) -> subprocess.CompletedProcess:

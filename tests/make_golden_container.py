@@ -17,6 +17,9 @@ STREAMS = {
     "names/\u00fcnic\u00f8de \u2713": "payload \u2713".encode(),
 }
 
+# From format 10, the index may describe the archive for people (`contents`).
+CONTENTS = {"columns": ["path", "frames", "fps", "skeleton"], "clips": [["07_01.amc", 2, 120.0, "07.asf"]]}
+
 # From format 7, an index over INDEX_ATTRIBUTE_BYTES is a deflated dataset, not an attribute.
 MANY_STREAMS = {f"clips/{i:04d}": bytes([i]) * i for i in range(40)}
 
@@ -24,5 +27,6 @@ if __name__ == "__main__":
     golden = Path(__file__).parent / "golden"
     for path, streams in ((golden / f"container_v{FORMAT_VERSION}.mcz", STREAMS),
                           (golden / f"container_v{FORMAT_VERSION}_index_dataset.mcz", MANY_STREAMS)):
-        size = write_archive(path, streams, tool_version=f"golden-container-v{FORMAT_VERSION}")
+        size = write_archive(path, streams, tool_version=f"golden-container-v{FORMAT_VERSION}",
+                             contents=CONTENTS if streams is STREAMS else None)
         print(f"wrote {path} ({size} bytes)")

@@ -21,7 +21,7 @@ from click.testing import CliRunner
 
 from mocapzip.archive import Archive
 from mocapzip.cli.main import main
-from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveReader
+from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveReader, write_archive
 
 GOLDEN_LOSSY = Path(__file__).parent / "golden" / f"lossy_v{FORMAT_VERSION}.mcz"  # the newest codec
 SECTION = re.compile(r"(header|index): |stream '(meta|skeletons|priors|class/\d{4}|clip/\d{5}|patch/\d{5}|extra_root/\d{5}|plant/\d{5})': .*|"
@@ -154,3 +154,25 @@ def test_same_inputs_give_byte_identical_archives(two_clips, tmp_path, mode):
             time.sleep(1.1)  # any timestamp written would differ between the first two runs
     first = archives["-j 1"]
     assert all(data == first for data in archives.values()), {k: len(v) for k, v in archives.items()}
+
+
+def test_a_clips_table_that_disagrees_with_meta_fails_the_test_only(tmp_path):
+    """The index's `contents` (format 10) is for people: decoding never reads it, so `info` and
+    `decompress` do as before, and `mcz test` says it does not match."""
+    with ArchiveReader(GOLDEN_LOSSY) as reader:
+        streams = {name: reader.read(name) for name in reader.names()}
+        contents = reader.contents
+    assert contents["clips"][0][:2] == ["09_01.amc", 148]
+    contents["clips"][0][1] = 149
+    damaged = tmp_path / "table.mcz"
+    write_archive(damaged, streams, tool_version="x", contents=contents)
+    result = run("test", damaged)
+    assert result.exit_code == 1
+    assert result.stderr == f"mcz: error: {damaged}: index: contents (the clips table) does not match meta\n"
+    assert run("decompress", damaged, "-o", tmp_path / "out", "-q").exit_code == 0
+    assert tree(tmp_path / "out") == tree_of_golden(tmp_path)
+
+
+def tree_of_golden(tmp_path: Path) -> dict[str, bytes]:
+    assert run("decompress", GOLDEN_LOSSY, "-o", tmp_path / "golden", "-q").exit_code == 0
+    return tree(tmp_path / "golden")

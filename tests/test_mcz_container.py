@@ -30,6 +30,7 @@ GOLDEN_STREAMS = {
     "clips/07_01/empty": b"",
     "names/\u00fcnic\u00f8de \u2713": "payload \u2713".encode(),
 }
+GOLDEN_CONTENTS = {"columns": ["path", "frames", "fps", "skeleton"], "clips": [["07_01.amc", 2, 120.0, "07.asf"]]}
 
 
 # tests/golden/container_v7_index_dataset.mcz: enough streams for the index to be a dataset
@@ -90,6 +91,7 @@ def test_golden_containers_still_decode(version):
         assert (reader.format_version, reader.tool_version) == (version, f"golden-container-v{version}")
         assert reader.names() == list(GOLDEN_STREAMS)
         assert {name: reader.read(name) for name in reader.names()} == GOLDEN_STREAMS
+        assert reader.contents == (GOLDEN_CONTENTS if version >= 10 else None)
 
 
 def test_read_touches_only_its_own_stream(tmp_path):
@@ -414,3 +416,17 @@ def test_overhead_is_small(tmp_path):
     print(f"empty archive: {empty} bytes; index overhead: {per_stream:.1f} bytes/stream")
     assert empty < 800  # measured 656 with h5py 3.16 / HDF5 2.0 (format 6: 1032)
     assert per_stream < 15  # measured 8.8: readable JSON, deflated by HDF5 (format 6's zstd index: 6.9)
+
+
+def test_contents_are_written_into_the_index_and_read_back(tmp_path):
+    """Format 10's `contents`: a JSON object in the index for people and `h5dump -a index`; the
+    reader hands it back and relies on nothing in it; one that is no object is refused."""
+    contents = {"columns": ["path"], "clips": [["a.amc"]]}
+    write_archive(tmp_path / "c.mcz", {"s": b"x"}, tool_version="1", contents=contents)
+    with ArchiveReader(tmp_path / "c.mcz") as reader:
+        assert reader.contents == contents and reader.read("s") == b"x"
+    with h5py.File(tmp_path / "c.mcz", "r") as f:
+        assert json.loads(f.attrs["index"])["contents"] == contents  # plain text for stock tools
+    write_archive(tmp_path / "d.mcz", {"s": b"x"}, tool_version="1", contents=[1])
+    with pytest.raises(ArchiveError, match="index: contents is not a JSON object"):
+        ArchiveReader(tmp_path / "d.mcz")

@@ -353,3 +353,15 @@ def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
     if clash:
         raise fail("clips", f"{clash[0][:80]!r} is both a file and a folder")
     return files
+
+
+CONTENTS_COLUMNS = ["path", "frames", "fps", "skeleton"]
+
+
+def contents_of(meta: dict) -> dict:
+    """What the index's `contents` holds (format 10 on): the clips table, for `h5dump -a index`
+    and anyone without mcz to read. Readers never use it; `mcz test` checks it against meta."""
+    fps, skeletons = meta["settings"]["fps"], meta["skeletons"]
+    return {"columns": CONTENTS_COLUMNS,
+            "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"]]
+                      for row in meta["clips"]]}

@@ -18,7 +18,7 @@ import numpy as np
 
 from mocapzip.archive import legacy
 from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
-from mocapzip.archive.meta import parse_json
+from mocapzip.archive.meta import contents_of, parse_json
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.settings import Settings
 from mocapzip.archive.skeletons import decode_skeletons
@@ -350,8 +350,11 @@ class Archive:
 
     def verify(self, jobs: int = 1) -> None:
         """Check every stream's checksum and make every file a full `decompress` writes, in memory
-        (`mcz test`): an archive that passes decompresses, disk space and permissions aside."""
+        (`mcz test`): an archive that passes decompresses, disk space and permissions aside. Also
+        checks that the index's clips table (format 10 on, where written) says what meta says."""
         self.verify_checksums()
+        if self._reader.contents not in (None, contents_of(self.meta)):
+            raise ArchiveError("index: contents (the clips table) does not match meta", self.path)
         entries = list(self.files.values())
         with closing(self.made_files(entries, jobs, keep=False)) as made:
             for _ in progress(made, total=len(entries), desc="test", unit="file"):

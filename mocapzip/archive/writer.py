@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 from mocapzip import __version__
 from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
+from mocapzip.archive.meta import contents_of
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.skeletons import encode_skeletons
 from mocapzip.archive.settings import Settings, checked
@@ -149,7 +150,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
                                        output)
         writer.add("meta", encode_bytes(unpacked["meta"], dictionary(STREAM_DICTIONARIES["meta"])))
         writer.add("skeletons", encode_skeletons(texts, [not isinstance(skeletons[p], BvhSkeleton) for p in skeleton_paths]))
-        size = writer.commit(order)
+        size = writer.commit(order, contents_of(meta))
     frames = sum(r["frames"] for r in rows)
     largest_mean = max(r["error_cm"] for r in rows)
     return {

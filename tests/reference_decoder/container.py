@@ -171,13 +171,16 @@ class Container:
         self._where = {n: (o, l, c) for n, o, l, c in zip(names, offsets, lengths, crcs)}
 
     def _index(self):
-        """Format 7 on: UTF-8 JSON {tool, names, lengths, crc32}, in attribute `index` or else as the one
+        """Format 7 on: UTF-8 JSON {tool, names, lengths, crc32} (format 10 on: and maybe contents),
+        in attribute `index` or else as the one
         string of dataset `index` (deflated by HDF5); CRC in `index_crc32`."""
         attrs = self._file.attrs
         index_bytes = bytes(attrs["index"]) if "index" in attrs else bytes(self._file["index"][0])
         if zlib.crc32(index_bytes) != int(attrs["index_crc32"]):
             raise ValueError("index: CRC mismatch")
         index = json.loads(index_bytes.decode("utf-8"))
+        if isinstance(index, dict) and self.format_version >= 10:  # "The index": contents, for people only
+            self.contents = index.pop("contents", None)
         if not isinstance(index, dict) or sorted(index) != ["crc32", "lengths", "names", "tool"]:
             raise ValueError("index: not an object of tool and the three arrays")
         self.tool_version = index["tool"]
