@@ -254,7 +254,8 @@ def _write_hdf5(file: _HDF5Output, streams: Mapping[str, bytes | SpooledStream],
         # JSON escapes (\udcXX), the only text UTF-8 cannot hold, they read back as they were.
         index = json.dumps(index_doc, ensure_ascii=False, separators=(",", ":")).encode("utf-8", "backslashreplace")
         if len(index) > MAX_INDEX_BYTES:  # readers refuse it: never write it
-            raise ValueError(f"the index of {len(items)} streams exceeds {MAX_INDEX_BYTES} bytes")
+            what = " and its contents" if contents is not None else ""
+            raise ValueError(f"the index of {len(items)} streams{what} exceeds {MAX_INDEX_BYTES} bytes")
 
         f.attrs.create("magic", np.bytes_(MAGIC.encode()))
         f.attrs.create("format_version", np.uint32(FORMAT_VERSION))
@@ -467,12 +468,13 @@ class ArchiveReader:
             if len(index) != size or zlib.crc32(index) != f.attrs["index_crc32"]:
                 raise self._error("index: CRC32 mismatch")
             doc = json.loads(index)
-        self.contents = doc.pop("contents", None) if isinstance(doc, dict) and self.format_version >= 10 else None
+        contents = doc.pop("contents", {}) if isinstance(doc, dict) and self.format_version >= 10 else {}
         if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
             raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}"
                               + (" (and contents)" if self.format_version >= 10 else ""))
-        if self.contents is not None and not isinstance(self.contents, dict):
+        if not isinstance(contents, dict):
             raise self._error("index: contents is not a JSON object")
+        self.contents = contents or None  # absent (or empty): nothing to show
         tool = doc["tool"]
         if not isinstance(tool, str) or not tool or "\0" in tool:
             raise self._error("index: tool must be a non-empty string without NUL")

@@ -47,7 +47,7 @@ def test_every_shared_skeleton_comes_back_byte_for_byte(shared_data):
 
 def test_cmu_skeletons_cost_what_issue_17_asks(shared_data):
     """600 B or less for an archive's first CMU skeleton, 300 B or less for each after it
-    (measured: 330-354 B, and 3,340 B for all 13; format 9 took 5,552)."""
+    (measured: 288-370 B, and 3,340 B for all 13; format 9 took 534-622 and 5,552)."""
     texts = [p.read_bytes() for p in sorted(shared_data.glob("cmu/*/*.asf"))]
     assert len(texts) == 13
     firsts = [len(round_trip([text], [True])) for text in texts]
@@ -145,3 +145,35 @@ def test_a_reference_beyond_the_candidates_is_refused(monkeypatch):
     monkeypatch.undo()
     with pytest.raises(ValueError, match="skeleton 1: reference 2 of 1"):
         decode_skeletons(coded, [True, True], LIMIT)
+
+
+def test_a_direction_in_tens_predicts_its_component_as_zero():
+    """Found in review: every scale 10 or coarser made the unit-vector prediction take a float
+    square root and crash; a unit vector's component rounds to 0 there."""
+    texts = [b"begin\n  direction 0e+1 0e+1 1e+1\nend\n", b"begin\n  direction 0e+1 1e+1 0e+1\nend\n"]
+    round_trip(texts, [True, True])
+
+
+def test_a_skeleton_looks_at_no_more_earlier_ones_than_it_may_choose():
+    """Found in review: the candidates scanned every earlier skeleton (quadratic in a crafted
+    archive of many); they stop at the latest CANDIDATES_EARLIER with as many numbers. Counted by
+    the earlier skeletons looked at, not by a clock."""
+
+    class Counting(list):
+        seen = 0
+
+        def __reversed__(self):
+            for item in super().__reversed__():
+                self.seen += 1
+                yield item
+
+    template = b"\0 \0"
+    earlier = Counting(skeletons._Reference(template, (skeletons.Number(k, 0),) * 2, (0, 0)) for k in range(3000))
+    found = skeletons._candidates(template, earlier)
+    assert [r.numbers[0].mantissa for r in found] == list(range(2999, 2999 - skeletons.CANDIDATES_EARLIER, -1))
+    assert earlier.seen <= skeletons.CANDIDATES_EARLIER + 1
+
+
+def test_directions_are_found_on_every_line():
+    template = split_numbers(b"begin\n  direction 0.5 0.5 0.707107\n  length 2\nend\n" * 2000)[0]
+    assert skeletons._directions(template) == list(range(0, 8000, 4))

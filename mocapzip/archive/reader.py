@@ -96,7 +96,7 @@ class Archive:
             raise ArchiveError(f"{name}: stream missing", self.path) from None
 
     def _unpacked(self, name: str) -> bytes:
-        """Stream `meta` or `skeletons` (formats 1 to 9) unzstd'd: with its dictionary from format 7 on."""
+        """Stream `meta` (or `skeletons` of formats 1 to 9) unzstd'd: with its dictionary from format 7 on."""
         used = dictionary(STREAM_DICTIONARIES[name]) if self.format_version >= 7 else None
         data = self._stream(name)
         try:

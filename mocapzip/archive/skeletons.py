@@ -7,8 +7,8 @@ predicted from the same number in a reference (the archive's last earlier skelet
 the family's means, `dictionaries/asf_means.txt`), and an ASF bone's direction, a
 unit vector, gives its largest component from the other two. Only the residuals are coded, by
 the binary range coder's adaptive models; the text around the numbers, with each number a NUL
-byte, goes to zstd with the dictionary made the same way. docs/format.md ("The `skeletons`
-stream, format 10") is the byte-level specification.
+byte, goes to zstd with the dictionary made the same way. docs/format.md ("`skeletons`
+(format 10 on)") is the byte-level specification.
 
 A number is a token `-?(0|[1-9][0-9]*)(\\.[0-9]+)?([eE][-+][0-9]{1,3})?` that no letter, digit,
 `_` or `.` touches, with at most 40 digits and 30 decimals; anything else stays in the text.
@@ -18,6 +18,7 @@ Printed as it was: sign, digits, decimals, exponent letter, sign and width are a
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 import re
 from dataclasses import dataclass
@@ -36,9 +37,11 @@ DIRECTION = re.compile(rb"(?m)^[ \t]*direction[ \t]+\0[ \t]+\0[ \t]+\0[ \t\r]*$"
 SECTION = re.compile(rb"(?m)^# AST/ASF file generated")
 MAX_DIGITS = 40
 MAX_DECIMALS = 30
-MAX_NUMBERS = 1 << 18  # in all of a stream's templates: decoding takes about 7 us a number, so at most 2 s
-MAX_SCALE_GAP = 30
-CANDIDATES_EARLIER = 8  # a reference more than this many decimal places away predicts 0
+# In all of a stream's templates. A number the stream holds in a few bits decodes in about 8 us, so
+# at most about 2 s; one of 40 digits takes about 54 us, but also its 17 bytes of the stream.
+MAX_NUMBERS = 1 << 18
+MAX_SCALE_GAP = 30  # a reference more than this many decimal places away predicts 0
+CANDIDATES_EARLIER = 8  # earlier skeletons a skeleton may be predicted from
 _LARGEST = 10**MAX_DIGITS  # a prediction this large or larger is 0 instead
 _BIT_LENGTHS = 136  # |residual| < 2 x 10**40 < 2**136
 _UNKNOWN = _BIT_LENGTHS + 1
@@ -135,7 +138,12 @@ def _family_references() -> tuple[_Reference, ...]:
 
 def _directions(template: bytes) -> list[int]:
     """Index of the first number of each ASF `direction` line whose three values are numbers."""
-    return [template.count(PLACEHOLDER, 0, match.start()) for match in DIRECTION.finditer(template)]
+    firsts, counted, before = [], 0, 0
+    for match in DIRECTION.finditer(template):
+        before += template.count(PLACEHOLDER, counted, match.start())
+        counted = match.start()
+        firsts.append(before)
+    return firsts
 
 
 @dataclass(frozen=True)
@@ -154,8 +162,8 @@ def _candidates(template: bytes, earlier: list[_Reference]) -> list[_Reference]:
     CANDIDATES_EARLIER earlier skeletons with as many numbers (latest first), then the families
     of `asf_means.txt` with as many (HDM05's template is also CMU's with CRLF line ends)."""
     count = template.count(PLACEHOLDER)
-    alike = [coded for coded in reversed(earlier) if len(coded.numbers) == count][:CANDIDATES_EARLIER]
-    return alike + [family for family in _family_references() if len(family.numbers) == count]
+    alike = itertools.islice((coded for coded in reversed(earlier) if len(coded.numbers) == count), CANDIDATES_EARLIER)
+    return [*alike, *(family for family in _family_references() if len(family.numbers) == count)]
 
 
 def _context(hint: int) -> int:
@@ -178,9 +186,10 @@ def _scaled(mantissa: int, from_scale: int, to_scale: int) -> int:
 
 def _unit_component(others: list[Number], own: Number, sign_from: Number) -> int:
     """The mantissa, at `own`'s scale, that makes a unit vector with `others` (0 if they are
-    longer than 1 already), signed as `sign_from`: exact integer arithmetic."""
+    longer than 1 already), signed as `sign_from`: exact integer arithmetic. Where every scale
+    is 10 or coarser, a unit vector's component rounds to 0."""
     finest = min(own.scale, *(n.scale for n in others))
-    if own.scale - finest > MAX_SCALE_GAP or any(n.scale - finest > MAX_SCALE_GAP for n in others):
+    if finest > 0 or own.scale - finest > MAX_SCALE_GAP or any(n.scale - finest > MAX_SCALE_GAP for n in others):
         return 0
     rest = 10 ** (-2 * finest) - sum((n.mantissa * 10 ** (n.scale - finest)) ** 2 for n in others)
     root = math.isqrt(rest) if rest > 0 else 0
@@ -209,9 +218,7 @@ def _put_int(encoder: Encoder, models, value: int) -> None:
     if value == 0:
         return
     encoder.bit(models, 1, int(value < 0))
-    length = abs(value).bit_length()
-    if length > _BIT_LENGTHS:
-        raise ValueError(f"a skeleton number's residual has {length} bits, more than {_BIT_LENGTHS}")
+    length = abs(value).bit_length()  # at most _BIT_LENGTHS: numbers and predictions are under 10**40
     for k in range(1, length):
         encoder.bit(models, 1 + k, 1)
     if length < _BIT_LENGTHS:
@@ -247,7 +254,7 @@ class _Coder:
         self.models, self.reference, self.template = models, reference, template
         self.count = template.count(PLACEHOLDER)
         self.numbers: list[Number | None] = [None] * self.count
-        self.lengths = [0] * self.count
+        self.hints = [0] * self.count
         self.last: Number | None = None
         # In each ASF direction, the component largest in the reference is coded after the other
         # two and predicted from them: index -> the other two.
@@ -258,9 +265,11 @@ class _Coder:
                 sizes = [abs(n.mantissa) * Fraction(10) ** n.scale for n in three]
                 largest = first + sizes.index(max(sizes))
                 self.derived[largest] = tuple(first + k for k in range(3) if first + k != largest)
-        self.order = [i for i in range(self.count) if i not in self.derived]
-        for i, (_, later) in self.derived.items():
-            self.order.insert(self.order.index(later) + 1, i)
+        after = {later: i for i, (_, later) in self.derived.items()}
+        self.order = []
+        for i in range(self.count):
+            if i not in self.derived:
+                self.order += [i, after[i]] if i in after else [i]
 
     def cost(self, numbers: list[Number]) -> int:
         """About how many bits coding `numbers` against this reference takes: what the encoder
@@ -274,7 +283,7 @@ class _Coder:
         return bits
 
     def coded(self) -> _Reference:
-        return _Reference(self.template, tuple(self.numbers), tuple(self.lengths))
+        return _Reference(self.template, tuple(self.numbers), tuple(self.hints))
 
     def _predicted(self, i: int, shape: Number) -> int:
         if self.reference is None:
@@ -307,7 +316,7 @@ class _Coder:
         _put_int(encoder, self._mantissa_models(i), residual)
         if number.mantissa == 0:
             encoder.bit(m.flags["negative_zero"], 0, int(number.negative))
-        self.numbers[i], self.lengths[i], self.last = number, abs(residual).bit_length(), number
+        self.numbers[i], self.hints[i], self.last = number, abs(residual).bit_length(), number
 
     def get(self, decoder: Decoder, i: int) -> None:
         m, ref = self.models, self._shape_reference(i)
@@ -329,14 +338,14 @@ class _Coder:
             raise ValueError(f"skeleton number {i}: more than {MAX_DIGITS} digits")
         negative = mantissa < 0 or (mantissa == 0 and bool(decoder.bit(m.flags["negative_zero"], 0)))
         self.numbers[i] = self.last = Number(mantissa, decimals, negative, letter, exponent, plus, width)
-        self.lengths[i] = abs(residual).bit_length()
+        self.hints[i] = abs(residual).bit_length()
 
 
 def encode_skeletons(texts: list[bytes], is_asf: list[bool]) -> bytes:
-    """The `skeletons` stream of `texts` (ASF files, and BVH hierarchies where `is_asf` is false):
-    as templates and numbers, or as the texts themselves where that is smaller, a text holds a
-    NUL byte or the texts hold over MAX_NUMBERS numbers (a first byte says which: numbers with no reference can cost more than zstd's repeats
-    of them)."""
+    """The `skeletons` stream of `texts` (ASF files, and BVH hierarchies where `is_asf` is false),
+    its first byte saying how: as templates and numbers, or as the texts themselves. The texts
+    themselves where that is smaller (numbers with no reference can cost more than zstd's repeats
+    of them), where a text holds a NUL byte, or where they hold over MAX_NUMBERS numbers."""
     whole = bytes([WHOLE_TEXTS]) + encode_bytes(pack_blobs(texts), dictionary("asf.txt"))
     if any(PLACEHOLDER in text for text in texts):  # a NUL would read as a number's place
         return whole
@@ -367,21 +376,23 @@ def decode_skeletons(blob: bytes, is_asf: list[bool], limit: int) -> list[bytes]
     would come to more than `limit` bytes in all."""
     reader = ByteReader(bytes(blob))
     layout = reader.byte()
-    if layout == WHOLE_TEXTS:
-        texts = unpack_blobs(decode_bytes(reader.take(reader.remaining()), limit, dictionary("asf.txt")))
-    elif layout == TEMPLATES_AND_NUMBERS:
-        texts = _predicted_texts(reader, is_asf, limit)
-    else:
+    if layout == TEMPLATES_AND_NUMBERS:
+        return _predicted_texts(reader, is_asf, limit)
+    if layout != WHOLE_TEXTS:
         raise ValueError(f"unknown skeletons layout {layout}")
+    texts = unpack_blobs(decode_bytes(reader.take(reader.remaining()), limit, dictionary("asf.txt")))
+    _check_count(texts, is_asf)
+    return texts
+
+
+def _check_count(texts: list[bytes], is_asf: list[bool]) -> None:
     if len(texts) != len(is_asf):
         raise ValueError(f"{len(texts)} skeleton texts, but meta lists {len(is_asf)}")
-    return texts
 
 
 def _predicted_texts(reader: ByteReader, is_asf: list[bool], limit: int) -> list[bytes]:
     templates = unpack_blobs(decode_bytes(reader.take(reader.varint()), limit, template_dictionary()))
-    if len(templates) != len(is_asf):
-        raise ValueError(f"{len(templates)} skeleton texts, but meta lists {len(is_asf)}")
+    _check_count(templates, is_asf)
     count = sum(template.count(PLACEHOLDER) for template in templates)
     if count > MAX_NUMBERS:
         raise ValueError(f"{count:,} skeleton numbers (at most {MAX_NUMBERS:,})")

@@ -80,7 +80,7 @@ def prediction(i, n, numbers, R, companions) -> int:
     if i in companions:
         a, b = (numbers[j] for j in companions[i])
         F = min(scale(n), scale(a), scale(b))
-        if max(scale(n) - F, scale(a) - F, scale(b) - F) > 30:
+        if F > 0 or max(scale(n) - F, scale(a) - F, scale(b) - F) > 30:
             return 0
         Q = 10 ** (-2 * F) - (a["m"] * 10 ** (scale(a) - F)) ** 2 - (b["m"] * 10 ** (scale(b) - F)) ** 2
         r = math.isqrt(Q) if Q > 0 else 0
