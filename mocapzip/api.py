@@ -18,6 +18,7 @@ from __future__ import annotations
 import numbers
 import os
 from collections.abc import Iterable, Iterator
+from contextlib import nullcontext
 from functools import cached_property
 from typing import NamedTuple
 
@@ -283,14 +284,11 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     except TypeError as exc:  # a keyword that is no Settings field
         raise SettingsError(f"compress() takes no option {str(exc).rsplit(' ', 1)[-1]}") from None
     inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
-    if dask is None:
-        return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force, jobs=jobs,
-                               skip_bad=skip_bad, units=units)
-    from mocapzip.cluster import on_cluster
-
-    with on_cluster(dask) as cluster:
+    if dask is not None:  # Dask's module only when asked for: it is an optional extra
+        from mocapzip.cluster import on_cluster
+    with nullcontext() if dask is None else on_cluster(dask) as cluster:
         return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force,
-                               jobs=cluster.workers, skip_bad=skip_bad, units=units)
+                               jobs=jobs if cluster is None else cluster.workers, skip_bad=skip_bad, units=units)
 
 
 def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Iterable[str] = (), *,

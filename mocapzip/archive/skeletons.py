@@ -355,13 +355,13 @@ def encode_skeletons(texts: list[bytes], is_asf: list[bool]) -> bytes:
     frame = encode_bytes(pack_blobs(template for template, _ in split), template_dictionary())
     encoder, models, done = Encoder(), _Models(), []
     for (template, numbers), asf in zip(split, is_asf):
-        candidates = _candidates(template, done)
-        coder = _Coder(template, asf, None, models)
+        candidates, reference = _candidates(template, done), None
         if candidates:
-            costs = [_Coder(template, asf, reference, models).cost(numbers) for reference in candidates]
+            costs = [_Coder(template, asf, candidate, models).cost(numbers) for candidate in candidates]
             choice = costs.index(min(costs))
             _put_int(encoder, models.integers["reference"], choice)
-            coder = _Coder(template, asf, candidates[choice], models)
+            reference = candidates[choice]
+        coder = _Coder(template, asf, reference, models)
         for i in coder.order:
             coder.put(encoder, i, numbers[i])
         done.append(coder.coded())

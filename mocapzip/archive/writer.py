@@ -3,7 +3,7 @@
 Streams (see docs/format.md, "Streams written by the codec"):
   meta        zstd JSON (dictionary meta.json): settings, skeleton and class tables, one row per clip
   skeletons   the ASF files and BVH hierarchies, byte for byte: the text between numbers by zstd, the numbers
-              predicted from an earlier skeleton or a family template and range coded (archive/skeletons.py)
+              predicted from an earlier skeleton or a family's means and range coded (archive/skeletons.py)
   class/NNNN  a class's quantised PCA mean and basis (lossy mode)
   priors      zstd bytes: where the clip streams' models start (coefficient coder "primed")
   clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
@@ -26,8 +26,8 @@ from mocapzip import __version__
 from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
 from mocapzip.archive.meta import contents_of
 from mocapzip.archive.meta import validate as validate_meta
-from mocapzip.archive.skeletons import encode_skeletons
 from mocapzip.archive.settings import Settings, checked
+from mocapzip.archive.skeletons import encode_skeletons
 from mocapzip.classes.auto import auto_classes, parse_auto
 from mocapzip.classes.by_name import class_namer, pooled_classes
 from mocapzip.classes.segment import OVERLAP, coded_range, join_decoded, segment_take
