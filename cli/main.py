@@ -143,7 +143,7 @@ def _not_stdout(ctx, param, value):
 
 
 # Options that only tune the lossy codec: given with --lossless they would be silently ignored.
-LOSSY_ONLY = ("error_cm", "max_error", "contact_error", "plant_feet", "repair_glitches", "representation", "transform", "wavelet", "level", "knot_spacing", "split", "segment")
+LOSSY_ONLY = ("error_cm", "max_error", "contact_error", "plant_feet", "repair_glitches", "representation", "transform", "wavelet", "level", "knot_spacing", "split", "segment", "model", "modes")
 
 
 def _refuse_lossy_options(ctx: click.Context) -> None:
@@ -204,6 +204,14 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--segment", is_flag=True,
               help="Cut long takes at PPCA change points and code each segment on its own (within --error); "
                    "with -c auto the segments of one take can fall in different classes.")
+@click.option("--model", type=click.Choice(["pca", "tensor"]), default="pca", show_default=True,
+              help="tensor: a class whose clips fill a grid of natural modes (--modes) is also coded as an N-mode "
+                   "SVD of its clips warped to one timeline (Kruger et al. 2007), each clip as the model's "
+                   "prediction plus what it misses, and keeps whichever takes fewer bytes; `mcz info` says which.")
+@click.option("--modes", default=None, metavar="REGEX",
+              help="With --model tensor: a pattern searched in each clip's path whose named groups are the "
+                   "natural modes, e.g. 'HDM_(?P<actor>[a-z]+)_' or '_(?P<style>[a-z-]+)_(?P<take>[0-9]+)[.]bvh$'. "
+                   "A class is a tensor only if every clip matches and they fill the grid.")
 @click.option("--split", default=None, metavar="R,P,T",
               help="Force the error split between root motion, PCA and temporal coding (shares of --error).")
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: the .asf in each AMC's folder; of several different ones, the one whose name begins the AMC's).")
@@ -236,7 +244,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
 def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, repair_glitches, lossless, representation, transform, wavelet, level, knot_spacing, classes,
-             segment, split, asf, fps, units, jobs, cache_mb, dask_address, force, skip_bad, quiet, verbose, as_json):
+             segment, model, modes, split, asf, fps, units, jobs, cache_mb, dask_address, force, skip_bad, quiet, verbose, as_json):
     """Compress the AMC and BVH clips under INPUTS (folders, searched recursively, or files) into one archive.
 
     Each AMC pairs with the ASF in its folder (or --asf): copies of one skeleton count as one, and
@@ -274,7 +282,8 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
     settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, contact_error_cm=contact,
                                 plant_feet=plant_feet, repair_glitches=repair_glitches, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=DEFAULT_FPS if fps is None else fps,
-                                fps_from_files=fps is None, lossless=lossless, segment=segment)
+                                fps_from_files=fps is None, lossless=lossless, segment=segment, model=model,
+                                modes=modes)
     context = click.get_current_context()
     if dask_address is not None and context.get_parameter_source("jobs") is ParameterSource.COMMANDLINE:
         raise click.UsageError("-j has no meaning with --dask: the cluster's workers do the work")
@@ -289,6 +298,16 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
         click.echo(json.dumps(summary, indent=2))
     elif not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+def _class_model(row: dict) -> str:
+    """--model tensor: what a class took (a tensor of its modes, or PCA where the tensor did not pay
+    or its clips fill no grid of --modes)."""
+    if row.get("model") == "tensor":
+        return ", tensor model over " + " x ".join(f"{m} ({len(v)})" for m, v in zip(row["modes"], row["levels"]))
+    if row.get("model") == "pca":
+        return ", PCA (no tensor: its clips fill no grid of --modes, or the tensor took more bytes)"
+    return ""
 
 
 @contextmanager
@@ -397,7 +416,7 @@ def info(archive_path, show_clips, as_json):
             click.echo(f"  {clip['path']}: {clip['dropped_frames']}")
     for c in report["classes"]:
         click.echo(f"  class {c['name']}: {_count(c['clips'], 'clip')}, {_count(c['frames'], 'frame')}, "
-                   f"{_count(c['components'], 'component')}")
+                   f"{_count(c['components'], 'component')}{_class_model(c)}")
     for group in report["auto_classes"]:
         tried = {}
         for candidate in group["candidates"]:

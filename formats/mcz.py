@@ -35,7 +35,7 @@ from mocapzip.formats.text import open_regular_file
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
 
-FORMAT_VERSION = 10
+FORMAT_VERSION = 11
 MAGIC = "MCZ mocapzip archive"
 _WRITE_BATCH = 1 << 20  # one h5py write per small stream costs ~50 us; batch them instead
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"

@@ -31,6 +31,7 @@ from mocapzip.archive.skeletons import TEMPLATES_AND_NUMBERS, WHOLE_TEXTS, encod
 from mocapzip.codec.entropy.coefficients import Priors, encode_matrices
 from mocapzip.codec.lossless import encode_channels
 from mocapzip.codec.patches import FramePatches
+from mocapzip.codec.tensor import TensorModel
 from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -40,7 +41,11 @@ BASES = {"lossy": GOLDEN / "lossy_v7.mcz", "lossless": GOLDEN / "lossless_v7.mcz
          # 31 frames, whose extra root moves, so it has a stream extra_root/00002)
          "lossy_bvh": GOLDEN / "lossy_v8.mcz", "lossless_bvh": GOLDEN / "lossless_v8.mcz",
          # format 9's: the same three clips; 64_01 (448 frames, 4 foot joints) has one stance, in plant/00001
-         "lossy_plant": GOLDEN / "lossy_v9.mcz"}
+         "lossy_plant": GOLDEN / "lossy_v9.mcz",
+         # format 11's: the same three clips; 09_01 and 64_01 (clips 0 and 1) are class 1, a tensor model of
+         # one mode (subject, 2 levels), with streams tensor/0001, warp/00000 and warp/00001; the BVH clip
+         # is class 0, PCA
+         "lossy_tensor": GOLDEN / "lossy_v11.mcz"}
 BASE_PATCHED = 45  # the lossy base's clip 0 (09_01): its row's patched_frames
 MEMORY_LIMIT = 1 << 30  # address space of each child: far below what any bomb here would take
 COMMANDS = (("test", "-q"), ("info", "--json"), ("decompress", "-q", "-o"))
@@ -383,7 +388,32 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("bvh_lossless_bones_not_its_joints", "lossless_bvh",
                   _both(_bvh_only, _set("clips.0.bones", [f"j{k}" for k in range(len(_bvh_row("bones", "lossless_bvh")))])),
                   "clip/00000", decoded=True))
+    # 9. --model tensor (format 11): a grid place, a model or a path that does not fit.
+    for label, edit, section, decoded in (
+        ("tensor_at_beyond_its_levels", _set("clips.0.tensor_at", [2]), "meta: clips[0].tensor_at", False),
+        ("tensor_at_of_two_modes", _set("clips.0.tensor_at", [0, 0]), "meta: clips[0].tensor_at", False),
+        ("tensor_at_in_a_pca_class", _set("clips.2.tensor_at", [0]), "meta: clips[2].tensor_at", False),
+        ("tensor_class_without_the_setting", _both(_delete("settings.model"), _delete("settings.modes")),
+         "meta: classes[0]", False),
+        ("tensor_stream_missing", _stream("tensor/0001", None), "tensor/0001", False),
+        ("tensor_model_of_another_grid", _stream("tensor/0001", _other_grid_model), "tensor/0001", True),
+        ("tensor_model_damaged", _stream("tensor/0001", b"\x01\x05"), "tensor/0001", True),
+        ("warp_move_not_a_move", _stream("warp/00000", lambda: entropy.encode_bytes(bytes([3]) * 200)), "warp/00000",
+         True),
+        ("warp_path_ends_short", _stream("warp/00000", lambda: entropy.encode_bytes(bytes([2]) * 3)), "warp/00000",
+         True),
+        ("warp_unpacks_to_300MB", _stream("warp/00000", lambda: _zstd_bomb(300 << 20)), "warp/00000", True),
+    ):
+        c.append(Case(label, "lossy_tensor", edit, section, decoded=decoded))
     return c
+
+
+def _other_grid_model() -> bytes:
+    """The format-11 base's tensor model with a third level on its one mode: not its class's grid."""
+    with ArchiveReader(BASES["lossy_tensor"]) as reader:
+        model = TensorModel.decode(reader.read("tensor/0001"))
+    model.factors[2] = np.vstack([model.factors[2], model.factors[2][:1]])
+    return model.encode()
 
 
 def _bvh_base_meta(base: str) -> dict:
@@ -445,7 +475,8 @@ def build(case: Case, archive: Path) -> None:
         streams = {name: reader.read(name) for name in reader.names()}
     meta = json.loads(entropy.decode_bytes(streams["meta"], dictionary=dictionary("meta.json")))
     original_meta = streams["meta"]
-    streams["skeletons"] = bytes([WHOLE_TEXTS]) + streams["skeletons"]  # the bases are formats 7 to 9
+    if case.base != "lossy_tensor":  # the bases of formats 7 to 9 hold the packed texts alone
+        streams["skeletons"] = bytes([WHOLE_TEXTS]) + streams["skeletons"]
     case.edit(meta, streams)
     if "meta" in streams and streams["meta"] == original_meta:  # the edit changed meta's fields
         streams["meta"] = _json_stream(meta)

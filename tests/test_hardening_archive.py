@@ -24,8 +24,9 @@ from mocapzip.cli.main import main
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveReader, write_archive
 
 GOLDEN_LOSSY = Path(__file__).parent / "golden" / f"lossy_v{FORMAT_VERSION}.mcz"  # the newest codec
-SECTION = re.compile(r"(header|index): |stream '(meta|skeletons|priors|class/\d{4}|clip/\d{5}|patch/\d{5}|extra_root/\d{5}|plant/\d{5})': .*|"
-                     r"(clip|patch|extra_root|plant)/\d{5} \(\S+\): damaged")
+SECTION = re.compile(r"(header|index): |stream '(meta|skeletons|priors|(class|tensor)/\d{4}|"
+                     r"(clip|patch|extra_root|plant|warp)/\d{5})': .*|"
+                     r"(clip|patch|extra_root|plant|warp)/\d{5} \(\S+\): damaged")
 
 
 def run(*args):

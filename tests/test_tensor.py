@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 import pytest
 
-from mocapzip.codec.tensor import hooi, hosvd, mode_product, project, reconstruct, stored_numbers, unfold
+from mocapzip.codec.tensor import (TensorModel, hooi, hosvd, mode_product, prediction, project, reconstruct,
+                                   stored_numbers, unfold)
 
 
 def orthonormal(rng, rows: int, columns: int) -> np.ndarray:
@@ -69,3 +72,64 @@ def test_bad_ranks_are_refused():
     for ranks in [(4, 3), (0, 3, 2), (5, 3, 2)]:
         with pytest.raises(ValueError):
             hosvd(tensor, ranks)
+
+
+# ------------------------------------------------------------------------ the stored model (--model tensor)
+
+def stored_model(shape=(40, 9, 3, 2), ranks=(6, 4, 3, 2), core_step=0.01, seed=6) -> tuple[np.ndarray, TensorModel]:
+    tensor = low_rank(shape, ranks, seed)
+    mean = np.random.default_rng(seed).normal(size=shape[1]) * 10
+    return tensor, TensorModel.quantised(mean, *hooi(tensor, ranks), core_step)
+
+
+def test_a_stored_model_decodes_to_itself_and_predicts_each_place_of_its_grid():
+    tensor, model = stored_model()
+    again = TensorModel.decode(model.encode())
+    assert again.encode() == model.encode()
+    for a in range(3):
+        for b in range(2):
+            predicted = model.warped((a, b))
+            np.testing.assert_array_equal(predicted, again.warped((a, b)))
+            # quantised to steps of 0.01 (core) and 2^-9 (factors): close to the tensor's slice, not equal
+            np.testing.assert_allclose(predicted, tensor[:, :, a, b] + model.mean, atol=0.05)
+            assert not np.array_equal(predicted, tensor[:, :, a, b] + model.mean)
+
+
+def test_the_prediction_follows_the_spec_order_of_products():
+    """docs/format.md, `tensor/NNNN`: the core reduced along the last mode first, then U_frames @ G @ U_values^T."""
+    _, model = stored_model()
+    g = np.tensordot(np.tensordot(model.core, model.factors[3][1], axes=(3, 0)), model.factors[2][2], axes=(2, 0))
+    np.testing.assert_allclose(model.warped((2, 1)), model.factors[0] @ g @ model.factors[1].T + model.mean,
+                               atol=1e-9)
+
+
+def test_a_prediction_is_carried_back_along_the_path():
+    _, model = stored_model()
+    warped = model.warped((0, 0))
+    path = np.array([[0, 0], [1, 0], [2, 1]] + [[i, i - 1] for i in range(3, 40)])  # frames 0 and 1 onto clip frame 0
+    clip = prediction(model, (0, 0), path)
+    assert clip.shape == (39, 9)
+    np.testing.assert_allclose(clip[0], (warped[0] + warped[1]) / 2)
+    np.testing.assert_array_equal(clip[5], warped[6])
+
+
+@pytest.mark.parametrize("damage", [
+    lambda b: bytes([9]) + b[1:],  # 9 natural modes: more than MAX_NATURAL_MODES
+    lambda b: bytes([3]) + b[1:],  # one more mode than the stream holds
+    lambda b: b[:-3],  # cut short
+])
+def test_a_damaged_model_is_refused(damage):
+    with pytest.raises((ValueError, EOFError)):
+        TensorModel.decode(damage(stored_model()[1].encode()))
+
+
+def test_ranks_above_their_size_or_a_bad_step_are_refused_before_decoding():
+    _, model = stored_model()
+    blob = bytearray(model.encode())
+    blob[5] = 50  # r_frames (after K and the four one-byte sizes 40, 9, 3, 2): above L = 40
+    with pytest.raises(ValueError, match="not a model"):
+        TensorModel.decode(bytes(blob))
+    blob = bytearray(model.encode())
+    blob[9:13] = struct.pack("<f", -1.0)  # the core step
+    with pytest.raises(ValueError, match="not a model"):
+        TensorModel.decode(bytes(blob))

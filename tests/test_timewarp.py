@@ -13,7 +13,7 @@ from mocapzip.motion.contacts import foot_strikes
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.physics import physics_features
 from mocapzip.motion.skeleton import SkeletonModel
-from mocapzip.motion.timewarp import dtw, levels, multiscale_dtw
+from mocapzip.motion.timewarp import dtw, levels, multiscale_dtw, path_moves, path_of_moves
 
 
 def features(n_frames: int, seed: int = 0) -> np.ndarray:
@@ -105,3 +105,27 @@ def test_steps_of_other_actors_land_on_the_same_foot(shared_data, motion):
                 distance, nearest_side = min((abs(in_reference[frame] - f), s)
                                              for s, fs in reference_steps.items() for f in fs)
                 assert nearest_side == side and distance <= 25, (side, frame, nearest_side, distance)
+
+
+# ------------------------------------------------------------------------ a path as stored (--model tensor)
+
+def test_a_path_goes_through_its_moves_and_back():
+    features = np.random.default_rng(7).normal(size=(90, 5, 3))
+    path = multiscale_dtw(features, features[::2], 120.0).path
+    moves = path_moves(path)
+    assert set(moves) <= {0, 1, 2} and len(moves) == len(path) - 1
+    np.testing.assert_array_equal(path_of_moves(moves, 90, 45), path)
+
+
+@pytest.mark.parametrize("path", [[[1, 0], [2, 1]], [[0, 0], [0, 0]], [[0, 0], [2, 1]], [[0, 0], [1, -1]]])
+def test_what_is_no_warping_path_has_no_moves(path):
+    with pytest.raises(ValueError, match="not a warping path"):
+        path_moves(np.array(path))
+
+
+def test_stored_moves_must_be_moves_and_end_at_both_last_frames():
+    with pytest.raises(ValueError, match="moves are 0, 1 or 2"):
+        path_of_moves(bytes([2, 3]), 3, 3)
+    with pytest.raises(ValueError, match=r"ends at \(2, 1\), not at \(2, 2\)"):
+        path_of_moves(bytes([2, 0]), 3, 3)
+    np.testing.assert_array_equal(path_of_moves(b"", 1, 1), [[0, 0]])

@@ -14,6 +14,7 @@ import json
 import fastjsonschema
 import pywt
 
+from mocapzip.classes.modes import MAX_MODES, MAX_PATTERN_CHARS
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
 from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
 from mocapzip.formats.bvh import motion_lines_problem
@@ -91,6 +92,7 @@ _CLIP = _record(
         "p99_error_cm": _ERROR,
         "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
         "planted_stances": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},  # format 9 on
+        "tensor_at": {"type": "array", "minItems": 1, "maxItems": MAX_MODES, "items": _COUNT},  # format 11 on
         "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
         "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
         "fps": {"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": MAX_FRAME_RATE},  # format 7 on
@@ -128,6 +130,8 @@ _SETTINGS = _record(
         "fps_from_files": {"type": "boolean"},  # format 7 on; absent: true
         "coefficient_coder": {"enum": [*stage_ids("coefficient coder"), "auto"]},
         "axes_from_positions": {"type": "boolean"},
+        "model": {"enum": ["tensor"]},  # format 11 on; absent: pca
+        "modes": {"type": "string", "maxLength": MAX_PATTERN_CHARS},
     },
 )
 
@@ -145,7 +149,10 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
             "format": {"enum": ["bvh"]}, "encoding": {"enum": ["utf-8", "latin-1"]},
             "units": {"enum": [*UNITS_CM, None]}, "units_inferred": {"type": "boolean"}})},
         "classes": {"type": "array", "items": _record({"name": _STRING, "components": _COUNT, "clips": _COUNT,
-                                                       "frames": _COUNT})},
+                                                       "frames": _COUNT}, {  # --model tensor (format 11 on)
+            "model": {"enum": ["pca", "tensor"]},
+            "modes": {"type": "array", "minItems": 1, "maxItems": MAX_MODES, "items": _STRING},
+            "levels": {"type": "array", "items": {"type": "array", "items": _STRING}}})},
         "clips": {"type": "array", "items": _CLIP},
     },
     {
@@ -164,6 +171,8 @@ ADDED_IN = {
     7: (("settings", "fps_from_files"), ("clips", "fps")),
     8: (("skeletons", "format"), ("clips", "bvh")),
     9: (("settings", "plant_feet"), ("clips", "planted_stances")),
+    11: (("settings", "model"), ("settings", "modes"), ("classes", "model"), ("classes", "modes"),
+         ("classes", "levels"), ("clips", "tensor_at")),
 }
 
 
@@ -219,10 +228,38 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
             needed.add("priors")
     for i, row in enumerate(meta["clips"]):
         needed.update(_check_clip(row, i, settings, meta["skeletons"], n_classes, fail))
+    needed.update(_check_tensor_classes(meta, fail))
     missing = sorted(needed - set(stream_names))
     if missing:
         raise ArchiveError(f"{missing[0]}: stream missing", archive_path)
     return _output_files(meta, fail)
+
+
+def _check_tensor_classes(meta: dict, fail) -> list[str]:
+    """`--model tensor`'s fields: a tensor class's modes and levels agree, and each of its clips
+    (never segmented) is at one place of its grid; return the streams they need."""
+    tensor = meta["settings"].get("model") == "tensor"
+    needed = []
+    for k, row in enumerate(meta["classes"]):
+        if ("model" in row) != tensor or (row.get("model") == "tensor") != ("modes" in row) or \
+                ("modes" in row) != ("levels" in row):
+            raise fail(f"classes[{k}]", "--model tensor names each class's model, and a tensor class its modes "
+                                        "and levels; other archives none of them")
+        if "modes" in row:
+            if len(row["levels"]) != len(row["modes"]) or any(len(levels) < 2 for levels in row["levels"]):
+                raise fail(f"classes[{k}].levels", "two or more levels for each mode")
+            needed.append(f"tensor/{k:04d}")
+    for i, row in enumerate(meta["clips"]):
+        segmented_or_lossless = "segments" in row or row["class"] >= len(meta["classes"])
+        model = {} if segmented_or_lossless else meta["classes"][row["class"]]
+        if ("tensor_at" in row) != ("modes" in model):
+            raise fail(f"clips[{i}].tensor_at", "a clip has its place in the grid if and only if its class is a tensor")
+        if "tensor_at" in row:
+            if len(row["tensor_at"]) != len(model["modes"]) or any(
+                    at >= len(levels) for at, levels in zip(row["tensor_at"], model["levels"])):
+                raise fail(f"clips[{i}].tensor_at", f"not a place in its class's grid of {model['modes']}")
+            needed.append(f"warp/{i:05d}")
+    return needed
 
 
 def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_classes: int, fail) -> list[str]:

@@ -25,6 +25,7 @@ from mocapzip.archive.skeletons import decode_skeletons
 from mocapzip.classes.segment import coded_range, join_decoded
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
+from mocapzip.codec.tensor import TensorModel, prediction
 from mocapzip.codec.entropy.coefficients import Priors, check_matrix_shape
 from mocapzip.codec.entropy.zstd import decode_bytes, unpack_blobs
 from mocapzip.codec.foot_lock import Stances, hold
@@ -39,6 +40,7 @@ from mocapzip.formats.text import MAX_ABS_VALUE, write_file_atomically
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
+from mocapzip.motion.timewarp import path_of_moves
 from mocapzip.parallel import imap, one_blas_thread
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
@@ -78,6 +80,7 @@ class Archive:
         self._decode_clip = legacy.CLIP_DECODERS.get(version, self._coded_clip)
         self._priors: Priors | None = None
         self._bases: dict[int, ClassBasis] = {}
+        self._tensors: dict[int, TensorModel] = {}
         self._models: dict[int, SkeletonModel] = {}
         self._bvh_skeletons: dict[int, BvhSkeleton] = {}
         self._bvh_joints: dict[int, list] = {}
@@ -176,6 +179,9 @@ class Archive:
                     poses, root = join_decoded(decoded, cores, row["frames"], row["segment_overlap"])
                 else:
                     poses, root = self._reconstruct(name, row["class"], row["frames"])
+                    if "tensor_at" in row:  # --model tensor: the stream coded what the class's model misses
+                        name = f"warp/{index:05d}"
+                        poses = poses + self._prediction(row, self._reader.read(name), poses.shape[1])
                 twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
                 tail = self._decode_tail(row["skeleton"], layout)
                 values = tail.decode(poses, root, twist)
@@ -265,6 +271,24 @@ class Archive:
             raise ValueError(f"{'no' if with_root else 'a'} root track matrix, where the representation "
                              f"{'has' if with_root else 'has none'}")
         return reconstruct(coded, basis, self.stages["transform"], self.settings.dead_zone, n_frames)
+
+    def _prediction(self, row: dict, moves: bytes, width: int) -> np.ndarray:
+        """A tensor class's prediction of the clip of `row` (`ratecontrol.tensor.prediction`), on
+        the path its stored `moves` give, checked against the class's model before it is made."""
+        k = row["class"]
+        if k not in self._tensors:
+            name, levels = f"tensor/{k:04d}", self.meta["classes"][k]["levels"]
+            try:
+                model = TensorModel.decode(self._reader.read(name))
+                if model.factors[1].shape[0] != width or [f.shape[0] for f in model.factors[2:]] != list(map(len, levels)):
+                    raise ValueError("not of its class basis's width and its grid's levels")
+            except (ValueError, EOFError) as exc:
+                raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
+            self._tensors[k] = model
+        model = self._tensors[k]
+        frames = model.factors[0].shape[0]
+        path = path_of_moves(decode_bytes(moves, frames + row["frames"]), frames, row["frames"])
+        return prediction(model, tuple(row["tensor_at"]), path)
 
     def _coded_clip(self, blob: bytes, shapes) -> CodedClip:
         return CodedClip.from_payload(blob, self.settings.coefficient_coder, shapes, self.priors)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from mocapzip.classes.modes import compiled_modes
 from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.stages import get_stage, stage_ids
 
@@ -40,6 +41,11 @@ class Settings:
     # bones whose rotation follows from joint positions store no axis (representations.positions.solved_bones);
     # absent, in formats 1 to 3: false
     axes_from_positions: bool = True
+    # "tensor" (format 11 on): a class whose clips fill a grid of natural modes (`modes`, a pattern whose
+    # named groups each clip's path matches: classes.modes) is also coded as a tensor model's prediction
+    # plus what it misses, and keeps whichever is smaller (ratecontrol.tensor). Absent: "pca"
+    model: str = "pca"
+    modes: str | None = None
 
     def chain(self) -> dict[str, dict]:
         """The config of every stage these settings name, by kind: all a decoder needs."""
@@ -76,6 +82,17 @@ def checked(settings: Settings) -> Settings:
     if settings.plant_feet and (settings.segment or settings.lossless):
         raise SettingsError("plant_feet does not combine with " + ("lossless: every value comes back as it was"
                             if settings.lossless else "segment: a segmented take's streams hold no stances"))
+    if settings.model not in ("pca", "tensor"):
+        raise SettingsError(f"model must be pca or tensor, got {settings.model!r}")
+    if (settings.model == "tensor") != (settings.modes is not None):
+        raise SettingsError("--model tensor needs --modes, and --modes is for --model tensor")
+    if settings.model == "tensor":
+        if settings.lossless or settings.segment:
+            raise SettingsError(f"--model tensor does not combine with {'--lossless' if settings.lossless else '--segment'}")
+        try:
+            compiled_modes(settings.modes)
+        except ValueError as exc:
+            raise SettingsError(str(exc)) from None
     if not settings.error_cm > 0:
         raise SettingsError(f"error_cm must be above 0, got {settings.error_cm}")
     bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm}

@@ -31,6 +31,7 @@ from mocapzip.archive.skeletons import encode_skeletons
 from mocapzip.classes.auto import auto_classes, parse_auto
 from mocapzip.classes.by_name import class_namer, pooled_classes
 from mocapzip.classes.segment import OVERLAP, coded_range, join_decoded, segment_take
+from mocapzip.classes.modes import NaturalModes, natural_modes
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.entropy.coefficients import Priors
 from mocapzip.codec.entropy.zstd import encode_bytes, pack_blobs
@@ -51,6 +52,7 @@ from mocapzip.parallel import imap, kept_workers, on_a_cluster, one_blas_thread,
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
 from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved
+from mocapzip.ratecontrol.tensor import encode_tensor_class
 from mocapzip.representations.base import Encoded
 from mocapzip.stages import get_stage
 
@@ -122,6 +124,8 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         for flag in ("segment", "repair_glitches", "plant_feet"):
             if not stored_settings[flag]:
                 del stored_settings[flag]  # absent means off
+        if stored_settings["model"] == "pca":
+            del stored_settings["model"], stored_settings["modes"]  # absent means pca (format 11 on: tensor)
         if stored_settings["fps_from_files"]:
             del stored_settings["fps_from_files"]  # absent means on (format 7 on: rows say where it applied)
         for bound in ("max_error_cm", "contact_error_cm"):
@@ -502,16 +506,27 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
     frames = [sum(units[u].coded_frames for u in members) for members in members_of]
     # counted in frames, not classes: one subject is one class, and a bar at 0/1 tells nothing
     _CODING["reader"] = reader  # the kept workers fork from the first class's first map
-    classes = [([units[u] for u in members], scan.poses.get(name)) for name, members in zip(class_names, members_of)]
+    grids = [natural_modes([units[u].source.relpath for u in members], settings.modes)
+             if settings.model == "tensor" else None for members in members_of]
+    classes = [([units[u] for u in members], scan.poses.get(name), grid)
+               for name, members, grid in zip(class_names, members_of, grids)]
     try:
         with progress(total=sum(frames), desc="code", unit="frame") as bar, kept_workers(jobs), \
                 closing(_coded_classes(classes, transform, settings, jobs)) as coded:
-            for k, (name, members, (basis, codings)) in enumerate(zip(class_names, members_of, coded)):
+            for k, (name, members, (basis, codings, tensor)) in enumerate(zip(class_names, members_of, coded)):
                 writer.add(f"class/{k:04d}", basis.encode())
                 classes_meta.append({"name": name, "components": basis.q,
                                      "clips": len({units[u].clip for u in members}), "frames": frames[k]})
-                for u, coding in zip(members, codings):
+                if settings.model == "tensor":  # which model each class took, and a tensor's grid
+                    classes_meta[-1]["model"] = "pca" if tensor is None else "tensor"
+                    if tensor is not None:
+                        writer.add(f"tensor/{k:04d}", tensor.model.encode())
+                        classes_meta[-1].update(modes=list(grids[k].modes), levels=[list(v) for v in grids[k].levels])
+                for j, (u, coding) in enumerate(zip(members, codings)):
                     unit = units[u]
+                    if tensor is not None:
+                        scan.rows[unit.clip]["tensor_at"] = list(tensor.at[j])
+                        writer.add(f"warp/{unit.clip:05d}", tensor.moves[j])
                     if unit.coded is None:
                         interim[f"clip/{unit.clip:05d}"] = coding.payload
                         _store_achieved(scan.rows[unit.clip], unit.clip, coding.achieved, coding.patches, writer,
@@ -537,20 +552,22 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
     return classes_meta, interim
 
 
-def _coded_classes(classes: list[tuple[list[_Unit], CovarianceAccumulator | None]], transform, settings: Settings,
-                   jobs: int):
-    """(basis, codings) of each class (its units and, if summed, its weighted poses), in order
-    (`encode_class`). Here, one class after the other, each spread over the `jobs` local workers.
+def _coded_classes(classes: list[tuple[list[_Unit], CovarianceAccumulator | None, NaturalModes | None]], transform,
+                   settings: Settings, jobs: int):
+    """(basis, codings, TensorClass or None) of each class (its units, if summed its weighted poses,
+    and the grid of natural modes its clips fill under --model tensor), in order (`encode_class`,
+    or `encode_tensor_class` for a class with a grid: coded in one process, its clips all loaded).
+    Here, one class after the other, each spread over the `jobs` local workers.
     On a Dask cluster, each class is one task and all are in flight at once, the largest started
     first: a class's maps wait for their last clip, and a cluster of many workers would idle
     through every class's barriers."""
     if not on_a_cluster():
-        for members, accumulator in classes:
-            yield encode_class(ClipsOnDemand(members, _load_unit), transform, settings, jobs, accumulator)
+        for members, accumulator, grid in classes:
+            yield _class_coded(members, accumulator, grid, transform, settings, jobs)
         return
     _SHARED.update(classes=classes, transform=transform, settings=settings)
     try:
-        sizes = [sum(unit.coded_frames for unit in members) for members, _ in classes]
+        sizes = [sum(unit.coded_frames for unit in members) for members, _, _ in classes]
         yield from imap(_coded_class, range(len(classes)), jobs, priorities=sizes)
     finally:
         _SHARED.clear()
@@ -560,11 +577,17 @@ def _coded_class(k: int):
     """In a Dask worker: class k coded there, on one core (a worker process runs one task at a
     time: `cluster._task`); its clips, kept by the worker's reader while the class is coded,
     forgotten after."""
-    members, accumulator = _SHARED["classes"][k]
-    coded = encode_class(ClipsOnDemand(members, _load_unit), _SHARED["transform"], _SHARED["settings"], 1,
-                         accumulator)
+    members, accumulator, grid = _SHARED["classes"][k]
+    coded = _class_coded(members, accumulator, grid, _SHARED["transform"], _SHARED["settings"], 1)
     _CODING["reader"].forget([unit.source for unit in members])
     return coded
+
+
+def _class_coded(members: list[_Unit], accumulator, grid: NaturalModes | None, transform, settings: Settings, jobs: int):
+    clips = ClipsOnDemand(members, _load_unit)
+    if grid is None:
+        return (*encode_class(clips, transform, settings, jobs, accumulator), None)
+    return encode_tensor_class(list(clips), list(grid.at), transform, settings)
 
 
 _CODING: dict = {}  # the reader of the clips being coded, which the kept workers inherit (`_load_unit`)

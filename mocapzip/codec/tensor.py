@@ -10,7 +10,14 @@ never fits worse.
 
 from __future__ import annotations
 
+import struct
+from dataclasses import dataclass
+
 import numpy as np
+
+from mocapzip.codec.entropy.coefficients import check_matrix_shape, decode_matrices, encode_matrices
+from mocapzip.codec.entropy.zstd import ByteReader, write_varint
+from mocapzip.motion.timewarp import Warping
 
 
 def unfold(tensor: np.ndarray, mode: int) -> np.ndarray:
@@ -78,3 +85,85 @@ def _leading(matrix: np.ndarray, count: int) -> np.ndarray:
 def _check_ranks(tensor: np.ndarray, ranks) -> None:
     if len(ranks) != tensor.ndim or any(not 1 <= r <= n for r, n in zip(ranks, tensor.shape)):
         raise ValueError(f"ranks {tuple(ranks)} for a tensor of shape {tensor.shape}: one per mode, 1 to its size")
+
+
+# ------------------------------------------------------------------------ the stored model
+
+FACTOR_STEP = 2.0 ** -9  # factors are orthonormal: entries within [-1, 1], stored to about 1/500
+MEAN_STEP_CM = 1e-3  # as a class basis's mean (`codec.basis.MEAN_STEP_CM`)
+
+
+@dataclass
+class TensorModel:
+    """A class's motions warped to one length, as `--model tensor` stores them (`tensor/NNNN`):
+    their mean pose, and the N-mode SVD of the rest, frames x pose values x natural modes.
+
+    It predicts each clip (`warped`, then put back on the clip's own timeline by its warping
+    path); the clip's stream codes only what the prediction misses, so a model that predicts
+    badly costs bytes, never error.
+    """
+
+    mean: np.ndarray  # (M,) weighted pose
+    core: np.ndarray  # (r_frames, r_values, r_1 ... r_K)
+    factors: list[np.ndarray]  # (L, r_frames), (M, r_values), then (levels_k, r_k) per natural mode
+    core_step: float
+
+    @classmethod
+    def quantised(cls, mean: np.ndarray, core: np.ndarray, factors: list[np.ndarray], core_step: float) -> "TensorModel":
+        """The model as the archive stores it, so that the encoder predicts what the decoder will."""
+        return cls.decode(cls(mean, core, factors, float(np.float32(core_step))).encode())
+
+    def warped(self, at: tuple[int, ...]) -> np.ndarray:
+        """(L, M): the prediction of the clip at levels `at` of the natural modes, on the warped timeline.
+        The core is reduced along the natural modes (last first), then U_frames @ G @ U_values^T + mean."""
+        if len(at) != len(self.factors) - 2:
+            raise ValueError(f"{len(at)} levels for {len(self.factors) - 2} natural modes")
+        reduced = self.core
+        for k in range(len(at) - 1, -1, -1):
+            reduced = reduced @ self.factors[2 + k][at[k]]
+        return self.factors[0] @ reduced @ self.factors[1].T + self.mean
+
+    def encode(self) -> bytes:
+        """u8 K, varints L, M, levels_1..K, then r_frames, r_values, r_1..K, f32 core step, then one
+        matrices stream: the mean (M x 1, MEAN_STEP_CM), the core (r_frames x the rest, C order)
+        and each factor (FACTOR_STEP)."""
+        header = bytearray([len(self.factors) - 2])
+        for size in [factor.shape[0] for factor in self.factors] + list(self.core.shape):
+            write_varint(header, size)
+        header += struct.pack("<f", self.core_step)
+        core = np.round(self.core / np.float64(self.core_step)).astype(np.int64)
+        matrices = [np.round(self.mean / MEAN_STEP_CM).astype(np.int64)[:, None], core.reshape(core.shape[0], -1)]
+        matrices += [np.round(factor / FACTOR_STEP).astype(np.int64) for factor in self.factors]
+        return bytes(header) + encode_matrices(matrices)
+
+    @classmethod
+    def decode(cls, blob: bytes) -> "TensorModel":
+        """Inverse of `encode`; sizes are checked against the limits before anything is decoded."""
+        reader = ByteReader(bytes(blob))
+        modes = reader.take(1)[0]
+        if modes > MAX_NATURAL_MODES:
+            raise ValueError(f"{modes} natural modes, more than {MAX_NATURAL_MODES}")
+        sizes = [reader.varint() for _ in range(modes + 2)]
+        ranks = [reader.varint() for _ in range(modes + 2)]
+        (core_step,) = struct.unpack("<f", reader.take(4))
+        if any(not 1 <= r <= n for r, n in zip(ranks, sizes)) or not (np.isfinite(core_step) and core_step > 0):
+            raise ValueError(f"ranks {ranks} for sizes {sizes}, core step {core_step}: not a model")
+        check_matrix_shape(sizes[0], sizes[1])  # the prediction it makes: bounded before it is made
+        core_columns = int(np.prod(ranks[1:]))
+        shapes = [(sizes[1], 1), (ranks[0], core_columns)] + list(zip(sizes, ranks))
+        for rows, columns in shapes:
+            check_matrix_shape(rows, columns)
+        mean, core, *factors = decode_matrices(reader.take(reader.remaining()), shapes)
+        if len(factors) != len(sizes):
+            raise ValueError(f"{len(factors) + 2} matrices in a tensor model, expected {len(sizes) + 2}")
+        return cls(mean[:, 0] * MEAN_STEP_CM, core.reshape(ranks).astype(np.float64) * np.float64(core_step),
+                   [factor.astype(np.float64) * FACTOR_STEP for factor in factors], float(core_step))
+
+
+MAX_NATURAL_MODES = 8
+
+
+def prediction(model: TensorModel, at: tuple[int, ...], path: np.ndarray) -> np.ndarray:
+    """(F, M): the model's clip at levels `at`, each frame of the clip the mean of the reference
+    frames its warping path matches to it (`Warping.carried`): what the decoder adds to its poses."""
+    return Warping(path, 0.0, 0).carried(model.warped(at), onto=1)

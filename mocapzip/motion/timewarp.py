@@ -186,3 +186,33 @@ def _dtw_band(a, b, lo, hi):
             raise ValueError("no warping path through the band")
         i, j = bi, bj
     return path[:length][::-1].copy(), total[start[n - 1] + m_last - lo[n - 1]], start[n]
+
+
+# ------------------------------------------------------------------------ a path as stored
+
+_MOVES = np.array([[1, 0], [0, 1], [1, 1]])  # move codes 0, 1, 2: along the first motion, the second, or both
+
+
+def path_moves(path: np.ndarray) -> bytes:
+    """The moves of a path from (0, 0), one byte each (0: the first motion's next frame, 1: the
+    second's, 2: both): what `--model tensor` stores of a clip's warping (`warp/NNNNN`, zstd)."""
+    path = np.asarray(path, np.int64)
+    steps = np.diff(path, axis=0)
+    codes = steps[:, 1] + 2 * steps[:, 0] - 1  # (1, 0) -> 1, (0, 1) -> 0, (1, 1) -> 2: then swap 0 and 1
+    valid = ((steps == 0) | (steps == 1)).all(axis=1) & (steps.sum(axis=1) > 0)
+    if len(path) == 0 or path[0].any() or not valid.all():
+        raise ValueError("not a warping path from (0, 0) in steps of (1, 0), (0, 1) or (1, 1)")
+    return np.where(codes == 2, 2, 1 - codes).astype(np.uint8).tobytes()
+
+
+def path_of_moves(moves: bytes, first_frames: int, second_frames: int) -> np.ndarray:
+    """Inverse of `path_moves`, checked to end at (first_frames - 1, second_frames - 1)."""
+    codes = np.frombuffer(moves, np.uint8)
+    if np.any(codes > 2):
+        raise ValueError(f"warping move {int(codes.max())}: moves are 0, 1 or 2")
+    path = np.zeros((len(codes) + 1, 2), np.int64)
+    np.cumsum(_MOVES[codes], axis=0, out=path[1:])
+    if tuple(path[-1]) != (first_frames - 1, second_frames - 1):
+        raise ValueError(f"a warping path that ends at {tuple(int(v) for v in path[-1])}, not at "
+                         f"({first_frames - 1}, {second_frames - 1})")
+    return path

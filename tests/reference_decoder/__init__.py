@@ -68,7 +68,7 @@ def decode_archive(path, bvh_clips: dict | None = None) -> dict:
         coder = settings.get("coefficient_coder", "zstd")
         priors = streams.read_priors(container.read("priors")) if coder == "primed" else None
         root_track = settings["representation"] in geometry.ROOT_TRACK_REPRESENTATIONS
-        bases = {}
+        bases, tensors = {}, {}
 
         def class_basis(class_index):
             if class_index not in bases:
@@ -93,7 +93,20 @@ def decode_archive(path, bvh_clips: dict | None = None) -> dict:
                 bvh.check_row(row, (model.bones, model.counts), lossless=False)
                 skeleton = model.skeleton
 
-            decoded = geometry.lossy_channels(settings, version, row, skeleton, coefficients)
+            def prediction(row, index=index):
+                """A tensor class's prediction of the clip (format 11 on)."""
+                k = row["class"]
+                if meta["classes"][k].get("model") != "tensor":
+                    raise ValueError(f"{row['path']}: tensor_at, but class {k} is no tensor")
+                if k not in tensors:
+                    tensors[k] = streams.tensor_model(container.read(f"tensor/{k:04d}"))
+                levels = meta["classes"][k]["levels"]
+                if [f.shape[0] for f in tensors[k][2][2:]] != [len(v) for v in levels]:
+                    raise ValueError(f"tensor/{k:04d}: not its class's grid")
+                return streams.tensor_prediction(tensors[k], row["tensor_at"], container.read(f"warp/{index:05d}"),
+                                                 row["frames"])
+
+            decoded = geometry.lossy_channels(settings, version, row, skeleton, coefficients, prediction)
             if "planted_stances" in row:
                 if version < 9:
                     raise ValueError("planted_stances in a format before 9")

@@ -230,7 +230,7 @@ def crossfade_weight(f, s, count, first, frames, h):
     return g
 
 
-def weighted_take(settings, row, coefficients, has_root):
+def weighted_take(settings, row, coefficients, has_root, prediction=None):
     """§2-§3: the take's weighted poses (frames x M) and root track (frames x 4 or None).
 
     The unsegmented clip's own stream is requested as stream name None (the row does not know
@@ -239,7 +239,10 @@ def weighted_take(settings, row, coefficients, has_root):
     transform = settings["transform"]
     n = row["frames"]
     if "segments" not in row:
-        return reconstruct(coefficients, transform, None, row["class"], n, has_root)
+        wposes, track = reconstruct(coefficients, transform, None, row["class"], n, has_root)
+        if "tensor_at" in row:  # §2a (format 11 on): plus the class's tensor model's prediction
+            wposes = wposes + prediction(row)
+        return wposes, track
     if not settings.get("segment", False):
         raise ValueError("row has segments but settings.segment is not true")
     v = row["segment_overlap"]
@@ -671,7 +674,7 @@ def pose_weights(sk, representation, width, axis_weight_cm):
     return w
 
 
-def lossy_channels(settings, format_version, row, skeleton, coefficients):
+def lossy_channels(settings, format_version, row, skeleton, coefficients, prediction=None):
     """The clip's decoded AMC values, frames x sum(counts) float64 (pipeline steps 1-6, §1-§10).
 
     skeleton(axes_from_positions) -> the clip's Skeleton (§5: an ASF's; or a BVH hierarchy's model).
@@ -688,7 +691,9 @@ def lossy_channels(settings, format_version, row, skeleton, coefficients):
     else:
         axes_from_positions = False  # §10
     has_root = representation in ROOT_TRACK_REPRESENTATIONS
-    wposes, track = weighted_take(settings, row, coefficients, has_root)
+    if "tensor_at" in row and (format_version < 11 or "segments" in row):
+        raise ValueError("tensor_at: format 11 on, in a row without segments")
+    wposes, track = weighted_take(settings, row, coefficients, has_root, prediction)
 
     frames, width = row["frames"], sum(row["counts"])
     if wposes.shape[0] != frames:

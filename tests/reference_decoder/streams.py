@@ -425,3 +425,55 @@ def planted_stances(data: bytes, row: dict, n_feet: int) -> list:
             raise ValueError(f"stance {i} ends past the clip's {row['frames']} frames")
         stances.append((foot, first, frames))
     return stances
+
+
+# --------------------------------------------------------------------------- tensor models (format 11)
+
+FACTOR_FACTOR = 2.0 ** -9  # "tensor/NNNN": each factor = ints * 2^-9
+
+
+def tensor_model(data: bytes) -> tuple:
+    """`tensor/NNNN` -> (mean (M,), core (r_0, ..., r_(K+1)), [U_frames, U_values, U_1 .. U_K])."""
+    reader = Reader(data)
+    k = reader.u8()
+    if not 1 <= k <= 8:
+        raise ValueError(f"tensor: {k} natural modes")
+    sizes = [reader.varint() for _ in range(k + 2)]
+    ranks = [reader.varint() for _ in range(k + 2)]
+    (core_step,) = reader.unpack("f")
+    if any(not 1 <= r <= n for r, n in zip(ranks, sizes)) or not (math.isfinite(core_step) and core_step > 0):
+        raise ValueError(f"tensor: ranks {ranks} for sizes {sizes}, core step {core_step}")
+    shapes = [(sizes[1], 1), (ranks[0], int(np.prod(ranks[1:])))] + list(zip(sizes, ranks))
+    mean, core, *factors = decode_matrices(reader.rest(), shapes, version=1)
+    return (mean[:, 0].astype(np.float64) * MEAN_FACTOR,
+            core.reshape(ranks).astype(np.float64) * float(core_step),
+            [f.astype(np.float64) * FACTOR_FACTOR for f in factors])
+
+
+def tensor_prediction(model: tuple, at: list, moves_frame: bytes, frames: int) -> np.ndarray:
+    """A tensor class's prediction of a clip (n x M): the model at levels `at` on the warped
+    timeline, each clip frame the mean of the rows its `warp/NNNNN` path matches to it."""
+    mean, core, factors = model
+    g = core
+    for k in range(len(at), 0, -1):
+        g = g @ factors[1 + k][at[k - 1]]
+    warped = factors[0] @ g @ factors[1].T + mean
+    length = warped.shape[0]
+    moves, rest = zstd_frame(moves_frame, length + frames)
+    if rest:
+        raise ValueError("warp: bytes after its zstd frame")
+    i = j = 0
+    sums, counts = np.zeros((frames, warped.shape[1])), np.zeros(frames)
+    sums[0] += warped[0]
+    counts[0] += 1
+    for move in moves:
+        if move > 2:
+            raise ValueError(f"warp: move {move}")
+        i, j = i + (move != 1), j + (move != 0)
+        if i >= length or j >= frames:
+            raise ValueError("warp: the path leaves the grid")
+        sums[j] += warped[i]
+        counts[j] += 1
+    if (i, j) != (length - 1, frames - 1):
+        raise ValueError(f"warp: the path ends at {(i, j)}")
+    return sums / counts[:, None]
