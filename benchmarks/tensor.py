@@ -2,6 +2,7 @@
 modes), reduced mode by mode, and against PCA at equal numbers of stored coefficients.
 
     python benchmarks/tensor.py [--data ../shared/data]
+    python benchmarks/tensor.py --codec [-e 1 -e 0.5] [-j 2]
 
 Classes, each with its natural modes from the file names:
 - Bandai `walk`: 14 styles x 2 takes (BVH, 30 Hz; "normal" left out, its second take is 31 frames);
@@ -34,7 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
+from mocapzip.archive import Archive
 from mocapzip.codec.tensor import hooi, reconstruct, stored_numbers
+from mocapzip.ratecontrol.tensor import encode_tensor_class
 from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.inputs.clip import ClipReader
 from mocapzip.inputs.discover import find_clips
@@ -149,10 +152,75 @@ def report(name: str, warped: WarpedClass) -> None:
         print(f"| {label} | {stored:,} | {degrees:.2f} | {cm:.2f} |")
 
 
+# --codec: `mcz compress --model tensor` against the default. Each set's classes are its natural
+# classes (an HDM05 motion, a Bandai content), split by pose width where skeletons differ (a class
+# spans one width), and its modes the pattern below.
+CODEC_SETS = {
+    "HDM05": ("hdm05/*/*.amc", r"HDM_[a-z]+_(?P<cls>[A-Za-z0-9]+)_", r"HDM_(?P<actor>[a-z]+)_"),
+    "Bandai": ("bvh-bandai/*.bvh", r"dataset-1_(?P<cls>[a-z-]+)_", r"_(?P<style>[a-z-]+)_(?P<take>[0-9]+)[.]bvh$"),
+}
+
+
+def codec_report(data: Path, errors: list[float], jobs: int) -> None:
+    """Bytes per frame of each set with the default classes, with its natural classes, and with those
+    and `--model tensor`; then, per class whose clips fill a grid, what PCA and each tensor coding took."""
+    import csv
+    import tempfile
+
+    from mocapzip.archive import Settings, compress, writer
+
+    tried: dict[str, list] = {}
+
+    def recording(clips, at, transform, settings):
+        trials = tried.setdefault(f"{len(clips)} clips, {clips[0].source.relpath}, {settings.error_cm:g} cm", [])
+        return encode_tensor_class(clips, at, transform, settings, trials)
+
+    writer.encode_tensor_class = recording
+    print("| set | clips | frames | -e (cm) | default classes | natural classes | --model tensor | classes as tensors |\n"
+          "|---|---:|---:|---:|---:|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, (pattern, cls, modes) in CODEC_SETS.items():
+            paths = sorted(data.glob(pattern))
+            table = Path(tmp) / f"{name}.csv"
+            default = Settings()
+            reader = ClipReader(default.representation, default.axis_weight_cm,
+                                axes_from_positions=default.axes_from_positions, fps=DEFAULT_FPS)
+            with table.open("w", newline="") as out:
+                for path, source in zip(paths, find_clips(paths)):
+                    width = reader.read(source).poses.shape[1]
+                    csv.writer(out).writerow([source.relpath, f"{re.search(cls, path.name)['cls']}-w{width}"])
+            for error in errors:
+                row = []
+                for options in ({}, {"classes": str(table)}, {"classes": str(table), "model": "tensor", "modes": modes}):
+                    summary = compress(paths, Path(tmp) / "db.mcz", Settings(error_cm=error, **options), force=True,
+                                       jobs=jobs)
+                    row.append(summary)
+                with Archive(Path(tmp) / "db.mcz") as archive:
+                    tensors = sum(c.get("model") == "tensor" for c in archive.meta["classes"])
+                print(f"| {name} | {row[0]['clips']} | {row[0]['frames']:,} | {error:g} | "
+                      + " | ".join(f"{r['bytes_per_frame']:.3f}" for r in row)
+                      + f" | {tensors} of {len(archive.meta['classes'])} |")
+    print("\nPer class whose clips fill a grid: bytes by PCA, and by each tensor coding (model + paths + "
+          "basis + clip streams)\n")
+    print("| class | PCA | tensor ranks | tensor | model | paths | basis | clips |\n|---|---:|---|---:|---:|---:|---:|---:|")
+    for label, trials in tried.items():
+        plain = trials[0]["bytes"]
+        for trial in trials[1:]:
+            print(f"| {label} | {plain:,} | {tuple(trial['ranks'])} | {trial['bytes']:,} | {trial['model_bytes']:,} | "
+                  f"{trial['path_bytes']:,} | {trial['basis_bytes']:,} | {trial['clip_bytes']:,} |")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA, help=f"the shared data folder (default {DATA})")
+    parser.add_argument("--codec", action="store_true",
+                        help="instead: bytes per frame with `mcz compress --model tensor` against the default")
+    parser.add_argument("-e", type=float, action="append", help="--codec: error targets (default 1 and 0.5 cm)")
+    parser.add_argument("-j", type=int, default=2, help="--codec: worker processes (default 2)")
     args = parser.parse_args(argv)
+    if args.codec:
+        codec_report(args.data, args.e or [1.0, 0.5], args.j)
+        return 0
     for name, (pattern, modes) in CLASSES.items():
         report(name, WarpedClass(sorted(args.data.glob(pattern)), modes))
     return 0

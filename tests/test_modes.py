@@ -17,10 +17,15 @@ def test_clips_that_fill_the_grid_get_their_places_in_sorted_levels():
     assert grid.at == ((1, 1), (0, 0), (1, 0), (0, 1))
 
 
+def test_a_mode_of_one_level_is_left_out():
+    grid = natural_modes(["bow_proud_001.bvh", "bow_angry_001.bvh"], STYLE_TAKE)
+    assert grid.modes == ("style",) and grid.levels == (("angry", "proud"),) and grid.at == ((1,), (0,))
+
+
 @pytest.mark.parametrize("paths", [
     ["walk_proud_001.bvh", "walk_angry_001.bvh", "walk_proud_002.bvh"],  # a place of the grid has no clip
     ["walk_proud_001.bvh", "walk_angry_001.bvh", "bow.bvh"],  # a path the pattern does not match
-    ["walk_proud_001.bvh", "walk_proud_002.bvh"],  # one style: a mode of one level
+    ["walk_proud_001.bvh", "walk_proud_001.bvh"],  # one level on every mode: no grid at all
     ["a/walk_proud_001.bvh", "b/walk_proud_001.bvh", "walk_angry_001.bvh", "walk_angry_002.bvh"],  # two at one place
     [],
 ])

@@ -97,3 +97,16 @@ def test_tensor_options_that_make_no_sense_are_refused_in_one_line(shared_data, 
     result = compress(shared_data / "bvh-bandai" / WALKS[0], tmp_path / "db.mcz", *options)
     assert result.exit_code == 2 and problem in result.output
     assert not (tmp_path / "db.mcz").exists()
+
+
+def test_the_python_api_takes_the_model_as_the_command_line_does(forced, tmp_path):
+    import mocapzip
+    from mocapzip.archive import SettingsError
+
+    inputs = forced[0]
+    summary = mocapzip.compress(inputs, tmp_path / "db.mcz", model="tensor", modes=MODES)
+    assert summary["clips"] == 4 and summary["largest_mean_error_cm"] <= 1.0
+    with pytest.raises(SettingsError, match="needs --modes"):
+        mocapzip.compress(inputs, tmp_path / "no.mcz", model="tensor")
+    with mocapzip.open(forced[1]) as archive:  # a tensor class's clips read as any other
+        assert archive[WALKS[0]].channels.shape[0] == read_bvh(inputs / WALKS[0]).n_frames

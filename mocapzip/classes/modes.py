@@ -42,16 +42,20 @@ class NaturalModes:
 
 def natural_modes(paths: list[str], pattern: str) -> NaturalModes | None:
     """The grid the clips at `paths` fill (in their order), or None where they fill none a tensor
-    could hold: a path the pattern does not match, a mode with one level, two clips at one place,
-    or a place of the grid with no clip."""
+    could hold: a path the pattern does not match, two clips at one place, a place of the grid
+    with no clip, or no mode of two levels or more. A mode of one level (every clip of the class
+    is the first take) is no mode of this class: it is left out."""
     compiled = compiled_modes(pattern)
     found = [compiled.search(path) for path in paths]
     if not paths or not all(found):
         return None
-    modes = tuple(compiled.groupindex)
-    places = [tuple(match.group(mode) or "" for mode in modes) for match in found]
+    named = [match.groupdict(default="") for match in found]
+    modes = tuple(mode for mode in compiled.groupindex if len({clip[mode] for clip in named}) > 1)
+    if not modes:
+        return None
+    places = [tuple(clip[mode] for mode in modes) for clip in named]
     levels = tuple(tuple(sorted({place[k] for place in places})) for k in range(len(modes)))
-    if any(len(mode_levels) < 2 for mode_levels in levels) or len(set(places)) != len(places):
+    if len(set(places)) != len(places):
         return None
     if len(places) != len(list(itertools.product(*levels))):
         return None

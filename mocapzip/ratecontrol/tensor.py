@@ -78,12 +78,16 @@ class TensorClass:
                 + sum(coding.size for coding in self.codings))
 
 
-def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], transform, settings):
+def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], transform, settings,
+                        tried: list | None = None):
     """(basis, codings, TensorClass or None): the class coded as `encode_class` codes it, and with
     a tensor model at each of RANKS; whichever takes the fewest bytes. `at`: each clip's
-    levels in the natural modes (`classes.modes.natural_modes`), a full grid."""
+    levels in the natural modes (`classes.modes.natural_modes`), a full grid. `tried`, if a list,
+    receives what each coding took (benchmarks/tensor.py reports it)."""
     basis, codings = encode_class(clips, transform, settings)
     best_size, best = len(basis.encode()) + sum(coding.size for coding in codings), None
+    if tried is not None:
+        tried.append({"model": "pca", "bytes": best_size})
     paths, tensor, mean = _warped_tensor(clips, at)
     for frames_share, values_share, natural in RANKS:
         ranks = [max(1, round(frames_share * tensor.shape[0])), max(1, round(values_share * tensor.shape[1])),
@@ -92,6 +96,10 @@ def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], tran
         model = TensorModel.quantised(mean, core, factors, CORE_STEP_SHARE * settings.error_cm)
         residual = [predicted(clip, prediction(model, place, path)) for clip, place, path in zip(clips, at, paths)]
         trial = TensorClass(model, at, paths, *encode_class(residual, transform, settings))
+        if tried is not None:
+            tried.append({"model": "tensor", "ranks": ranks, "bytes": trial.size, "model_bytes": len(model.encode()),
+                          "path_bytes": sum(map(len, trial.moves)), "basis_bytes": len(trial.basis.encode()),
+                          "clip_bytes": sum(coding.size for coding in trial.codings)})
         if _pays(trial.size, best_size):
             best_size, best = trial.size, trial
     return (basis, codings, None) if best is None else (best.basis, best.codings, best)
