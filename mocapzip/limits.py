@@ -14,3 +14,4 @@ MAX_COEFFICIENTS_PER_MATRIX = 1 << 25  # frames x pose columns of a coded clip, 
 MAX_BONES_PER_SKELETON = 1 << 10  # ASF bones (CMU: 30); the kinematics holds a bones x bones matrix
 MAX_DECODED_STREAM_BYTES = 1 << 28  # 256 MiB: what one zstd-coded stream (meta, skeletons, priors) may unpack to
 MAX_PATH_BYTES = 4096  # a stored clip path or skeleton name, UTF-8
+MAX_NATURAL_MODES = 8  # --model tensor: the natural modes of a class's grid (classes.modes, codec.tensor)

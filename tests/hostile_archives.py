@@ -395,7 +395,9 @@ def cases(watched: Path) -> list[Case]:
         ("tensor_at_in_a_pca_class", _set("clips.2.tensor_at", [0]), "meta: clips[2].tensor_at", False),
         ("tensor_class_without_the_setting", _both(_delete("settings.model"), _delete("settings.modes")),
          "meta: classes[0]", False),
+        ("tensor_model_without_its_pattern", _delete("settings.modes"), "meta: settings.modes", False),
         ("tensor_stream_missing", _stream("tensor/0001", None), "tensor/0001", False),
+        ("tensor_model_of_no_mode", _stream("tensor/0001", _model_of_no_mode), "tensor/0001", True),
         ("tensor_model_of_another_grid", _stream("tensor/0001", _other_grid_model), "tensor/0001", True),
         ("tensor_model_damaged", _stream("tensor/0001", b"\x01\x05"), "tensor/0001", True),
         ("warp_move_not_a_move", _stream("warp/00000", lambda: entropy.encode_bytes(bytes([3]) * 200)), "warp/00000",
@@ -406,6 +408,12 @@ def cases(watched: Path) -> list[Case]:
     ):
         c.append(Case(label, "lossy_tensor", edit, section, decoded=decoded))
     return c
+
+
+def _model_of_no_mode() -> bytes:
+    """The format-11 base's tensor model with K set to 0: a model must have a natural mode."""
+    with ArchiveReader(BASES["lossy_tensor"]) as reader:
+        return bytes([0]) + reader.read("tensor/0001")[1:]
 
 
 def _other_grid_model() -> bytes:

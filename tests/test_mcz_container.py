@@ -422,6 +422,8 @@ def test_overhead_is_small(tmp_path):
 def test_datasets_reserve_no_room_for_attributes(tmp_path, monkeypatch, count):
     """HDF5 gives each dataset's object header room for attributes mcz never writes, unless told
     (`_without_attributes`); told, the archive is 169 bytes smaller a dataset and reads the same."""
+    if mcz._no_attrs_hint() is None:
+        pytest.skip("this HDF5 library cannot be told (Windows: ctypes finds no HDF5 call in h5py's extension)")
     streams = {f"clip/{i:05d}": bytes([i % 256]) * 50 for i in range(count)}
     write_archive(tmp_path / "hinted.mcz", streams, tool_version="1")
     monkeypatch.setattr(mcz, "_no_attrs_hint", lambda: None)  # as where HDF5 cannot be reached (Windows)

@@ -110,3 +110,12 @@ def test_the_python_api_takes_the_model_as_the_command_line_does(forced, tmp_pat
         mocapzip.compress(inputs, tmp_path / "no.mcz", model="tensor")
     with mocapzip.open(forced[1]) as archive:  # a tensor class's clips read as any other
         assert archive[WALKS[0]].channels.shape[0] == read_bvh(inputs / WALKS[0]).n_frames
+
+
+def test_a_class_too_large_for_a_tensor_stays_pca(shared_data, tmp_path, monkeypatch):
+    inputs = linked(tmp_path / "in", *(shared_data / "bvh-bandai" / name for name in WALKS))
+    monkeypatch.setattr(tensor, "_pays", lambda tensor_bytes, best_bytes: True)
+    monkeypatch.setattr(tensor, "MAX_TENSOR_VALUES", 1000)
+    assert compress(inputs, tmp_path / "db.mcz", "--model", "tensor", "--modes", MODES).exit_code == 0
+    with Archive(tmp_path / "db.mcz") as opened:
+        assert [row["model"] for row in opened.meta["classes"]] == ["pca"]

@@ -14,14 +14,14 @@ import json
 import fastjsonschema
 import pywt
 
-from mocapzip.classes.modes import MAX_MODES, MAX_PATTERN_CHARS
+from mocapzip.classes.modes import MAX_PATTERN_CHARS
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
 from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
 from mocapzip.formats.bvh import motion_lines_problem
 from mocapzip.formats.text import MAX_FRAME_RATE
 from mocapzip.formats.mcz import ArchiveError
 from mocapzip.defaults import UNITS_CM
-from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
+from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_NATURAL_MODES, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import stage_classes, stage_ids
 
 MAX_NAME_BYTES = 255  # one path component: what POSIX file systems allow
@@ -92,7 +92,7 @@ _CLIP = _record(
         "p99_error_cm": _ERROR,
         "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
         "planted_stances": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},  # format 9 on
-        "tensor_at": {"type": "array", "minItems": 1, "maxItems": MAX_MODES, "items": _COUNT},  # format 11 on
+        "tensor_at": {"type": "array", "minItems": 1, "maxItems": MAX_NATURAL_MODES, "items": _COUNT},  # format 11 on
         "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
         "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
         "fps": {"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": MAX_FRAME_RATE},  # format 7 on
@@ -151,7 +151,7 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
         "classes": {"type": "array", "items": _record({"name": _STRING, "components": _COUNT, "clips": _COUNT,
                                                        "frames": _COUNT}, {  # --model tensor (format 11 on)
             "model": {"enum": ["pca", "tensor"]},
-            "modes": {"type": "array", "minItems": 1, "maxItems": MAX_MODES, "items": _STRING},
+            "modes": {"type": "array", "minItems": 1, "maxItems": MAX_NATURAL_MODES, "items": _STRING},
             "levels": {"type": "array", "items": {"type": "array", "items": _STRING}}})},
         "clips": {"type": "array", "items": _CLIP},
     },
@@ -236,9 +236,15 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
 
 
 def _check_tensor_classes(meta: dict, fail) -> list[str]:
-    """`--model tensor`'s fields: a tensor class's modes and levels agree, and each of its clips
-    (never segmented) is at one place of its grid; return the streams they need."""
-    tensor = meta["settings"].get("model") == "tensor"
+    """`--model tensor`'s fields: the setting and its pattern come together, in a lossy archive
+    without segments; a tensor class's modes and levels agree; each clip of it is at one place
+    of its grid, and no other clip or segment is; return the streams they need."""
+    settings = meta["settings"]
+    tensor = settings.get("model") == "tensor"
+    if ("model" in settings) != ("modes" in settings):
+        raise fail("settings.modes", "model and modes come together")
+    if tensor and (settings["lossless"] or settings.get("segment")):
+        raise fail("settings.model", "a tensor model is lossy and never segmented")
     needed = []
     for k, row in enumerate(meta["classes"]):
         if ("model" in row) != tensor or (row.get("model") == "tensor") != ("modes" in row) or \
@@ -251,13 +257,13 @@ def _check_tensor_classes(meta: dict, fail) -> list[str]:
             needed.append(f"tensor/{k:04d}")
     for i, row in enumerate(meta["clips"]):
         segmented_or_lossless = "segments" in row or row["class"] >= len(meta["classes"])
-        model = {} if segmented_or_lossless else meta["classes"][row["class"]]
-        if ("tensor_at" in row) != ("modes" in model):
+        class_row = {} if segmented_or_lossless else meta["classes"][row["class"]]
+        if ("tensor_at" in row) != ("modes" in class_row):
             raise fail(f"clips[{i}].tensor_at", "a clip has its place in the grid if and only if its class is a tensor")
         if "tensor_at" in row:
-            if len(row["tensor_at"]) != len(model["modes"]) or any(
-                    at >= len(levels) for at, levels in zip(row["tensor_at"], model["levels"])):
-                raise fail(f"clips[{i}].tensor_at", f"not a place in its class's grid of {model['modes']}")
+            if len(row["tensor_at"]) != len(class_row["modes"]) or any(
+                    at >= len(levels) for at, levels in zip(row["tensor_at"], class_row["levels"])):
+                raise fail(f"clips[{i}].tensor_at", f"not a place in its class's grid of {class_row['modes']}")
             needed.append(f"warp/{i:05d}")
     return needed
 

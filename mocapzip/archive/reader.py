@@ -273,7 +273,7 @@ class Archive:
         return reconstruct(coded, basis, self.stages["transform"], self.settings.dead_zone, n_frames)
 
     def _prediction(self, row: dict, moves: bytes, width: int) -> np.ndarray:
-        """A tensor class's prediction of the clip of `row` (`ratecontrol.tensor.prediction`), on
+        """A tensor class's prediction of the clip of `row` (`codec.tensor.prediction`), on
         the path its stored `moves` give, checked against the class's model before it is made."""
         k = row["class"]
         if k not in self._tensors:

@@ -9,25 +9,26 @@ a style and a take mode.
 
 from __future__ import annotations
 
-import itertools
+import math
 import re
 from dataclasses import dataclass
 
+from mocapzip.limits import MAX_NATURAL_MODES
+
 MAX_PATTERN_CHARS = 1000
-MAX_MODES = 8  # `codec.tensor.MAX_NATURAL_MODES`
 
 
 def compiled_modes(pattern: str) -> re.Pattern:
-    """The pattern, checked to name between 1 and MAX_MODES groups (ValueError otherwise)."""
+    """The pattern, checked to name between 1 and MAX_NATURAL_MODES groups (ValueError otherwise)."""
     if len(pattern) > MAX_PATTERN_CHARS:
         raise ValueError(f"--modes is {len(pattern):,} characters long, more than {MAX_PATTERN_CHARS:,}")
     try:
         compiled = re.compile(pattern)
     except re.error as exc:
         raise ValueError(f"--modes {pattern!r} is not a regular expression: {exc}") from None
-    if not 1 <= len(compiled.groupindex) <= MAX_MODES:
+    if not 1 <= len(compiled.groupindex) <= MAX_NATURAL_MODES:
         raise ValueError(f"--modes {pattern!r} names {len(compiled.groupindex)} groups: give each natural mode "
-                         f"one, (?P<actor>...), 1 to {MAX_MODES} of them")
+                         f"one, (?P<actor>...), 1 to {MAX_NATURAL_MODES} of them")
     return compiled
 
 
@@ -57,7 +58,7 @@ def natural_modes(paths: list[str], pattern: str) -> NaturalModes | None:
     levels = tuple(tuple(sorted({place[k] for place in places})) for k in range(len(modes)))
     if len(set(places)) != len(places):
         return None
-    if len(places) != len(list(itertools.product(*levels))):
+    if len(places) != math.prod(map(len, levels)):  # the places are distinct: as many as the grid's, every one
         return None
     return NaturalModes(modes, levels, tuple(tuple(levels[k].index(v) for k, v in enumerate(place))
                                              for place in places))

@@ -10,6 +10,7 @@ never fits worse.
 
 from __future__ import annotations
 
+import math
 import struct
 from dataclasses import dataclass
 
@@ -17,6 +18,7 @@ import numpy as np
 
 from mocapzip.codec.entropy.coefficients import check_matrix_shape, decode_matrices, encode_matrices
 from mocapzip.codec.entropy.zstd import ByteReader, write_varint
+from mocapzip.limits import MAX_NATURAL_MODES
 from mocapzip.motion.timewarp import Warping
 
 
@@ -141,26 +143,23 @@ class TensorModel:
         """Inverse of `encode`; sizes are checked against the limits before anything is decoded."""
         reader = ByteReader(bytes(blob))
         modes = reader.take(1)[0]
-        if modes > MAX_NATURAL_MODES:
-            raise ValueError(f"{modes} natural modes, more than {MAX_NATURAL_MODES}")
+        if not 1 <= modes <= MAX_NATURAL_MODES:
+            raise ValueError(f"{modes} natural modes, not 1 to {MAX_NATURAL_MODES}")
         sizes = [reader.varint() for _ in range(modes + 2)]
         ranks = [reader.varint() for _ in range(modes + 2)]
         (core_step,) = struct.unpack("<f", reader.take(4))
         if any(not 1 <= r <= n for r, n in zip(ranks, sizes)) or not (np.isfinite(core_step) and core_step > 0):
             raise ValueError(f"ranks {ranks} for sizes {sizes}, core step {core_step}: not a model")
         check_matrix_shape(sizes[0], sizes[1])  # the prediction it makes: bounded before it is made
-        core_columns = int(np.prod(ranks[1:]))
-        shapes = [(sizes[1], 1), (ranks[0], core_columns)] + list(zip(sizes, ranks))
-        for rows, columns in shapes:
+        for rows, columns in zip(sizes, ranks):  # each factor, then the core (Python ints: no overflow)
             check_matrix_shape(rows, columns)
+        check_matrix_shape(ranks[0], math.prod(ranks[1:]))
+        shapes = [(sizes[1], 1), (ranks[0], math.prod(ranks[1:]))] + list(zip(sizes, ranks))
         mean, core, *factors = decode_matrices(reader.take(reader.remaining()), shapes)
         if len(factors) != len(sizes):
             raise ValueError(f"{len(factors) + 2} matrices in a tensor model, expected {len(sizes) + 2}")
         return cls(mean[:, 0] * MEAN_STEP_CM, core.reshape(ranks).astype(np.float64) * np.float64(core_step),
                    [factor.astype(np.float64) * FACTOR_STEP for factor in factors], float(core_step))
-
-
-MAX_NATURAL_MODES = 8
 
 
 def prediction(model: TensorModel, at: tuple[int, ...], path: np.ndarray) -> np.ndarray:

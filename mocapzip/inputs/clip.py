@@ -79,6 +79,12 @@ class LoadedClip:
         return self.encoded.poses * self.weights
 
     @property
+    def own_poses(self) -> np.ndarray:
+        """The clip's weighted poses as its joints are: `poses`, unless the codec codes what a
+        prediction misses (`ratecontrol.tensor.PredictedClip`)."""
+        return self.poses
+
+    @property
     def root(self) -> np.ndarray | None:
         return self.encoded.root
 

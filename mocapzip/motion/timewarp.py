@@ -198,11 +198,12 @@ def path_moves(path: np.ndarray) -> bytes:
     second's, 2: both): what `--model tensor` stores of a clip's warping (`warp/NNNNN`, zstd)."""
     path = np.asarray(path, np.int64)
     steps = np.diff(path, axis=0)
-    codes = steps[:, 1] + 2 * steps[:, 0] - 1  # (1, 0) -> 1, (0, 1) -> 0, (1, 1) -> 2: then swap 0 and 1
-    valid = ((steps == 0) | (steps == 1)).all(axis=1) & (steps.sum(axis=1) > 0)
-    if len(path) == 0 or path[0].any() or not valid.all():
+    if len(path) == 0 or path[0].any() or not np.isin(steps, (0, 1)).all() or (steps.sum(axis=1) == 0).any():
         raise ValueError("not a warping path from (0, 0) in steps of (1, 0), (0, 1) or (1, 1)")
-    return np.where(codes == 2, 2, 1 - codes).astype(np.uint8).tobytes()
+    return _MOVE_OF_STEP[steps[:, 0], steps[:, 1]].astype(np.uint8).tobytes()
+
+
+_MOVE_OF_STEP = np.array([[-1, 1], [0, 2]])  # [first's step, second's step] -> move (`_MOVES` inverted)
 
 
 def path_of_moves(moves: bytes, first_frames: int, second_frames: int) -> np.ndarray:

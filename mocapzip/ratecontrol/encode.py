@@ -356,7 +356,7 @@ class _ClipSearch:
     def proxy(self) -> CodingProxy:
         clip = self.clip
         columns = joint_position_columns(clip.model, clip.representation_name)
-        character = None if clip.root is None else (clip.poses[:, columns].reshape(self.n, -1, 3), clip.root[:, 3])
+        character = None if clip.root is None else (clip.own_poses[:, columns].reshape(self.n, -1, 3), clip.root[:, 3])
         return CodingProxy(self.pose_coef, self.root_coef, self.basis.components, columns,
                            clip.poses - self.basis.reconstruct(self.projected), self.transform, self.dz, character,
                            self.sample)

@@ -12,16 +12,20 @@ exactly as without the model, which can cost bytes but never error.
 
 The model pays only if its bytes and the paths' are less than what it saves the clips. Each
 class is coded without it and with it at a few ranks (`RANKS`); the smallest wins, and a
-class where plain PCA wins is stored as one (`mcz info` shows which).
+class where plain PCA wins is stored as one (`mcz info` shows which). So does a class whose
+tensor would hold more than MAX_TENSOR_VALUES values, or whose clips no warping path aligns. A
+tensor class is coded in one process, all its clips in memory at once.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 from functools import cached_property
 
 import numpy as np
 
+from mocapzip.codec.entropy.coefficients import check_matrix_shape
 from mocapzip.codec.entropy.zstd import encode_bytes
 from mocapzip.codec.tensor import TensorModel, hooi, prediction
 from mocapzip.inputs.clip import LoadedClip
@@ -36,6 +40,7 @@ from mocapzip.ratecontrol.encode import encode_class
 # PCA, and saved its clips almost nothing (docs/seed_methods.md).
 RANKS = ((1 / 32, 1 / 32, 1), (1 / 16, 1 / 16, 1), (1 / 8, 1 / 8, None))
 CORE_STEP_SHARE = 0.5  # the core's quantiser step, as a share of the error target
+MAX_TENSOR_VALUES = 1 << 25  # a larger class (256 MB of float64, and HOOI's copies of it) stays PCA
 
 
 @dataclass
@@ -47,7 +52,11 @@ class PredictedClip(LoadedClip):
 
     @cached_property
     def poses(self) -> np.ndarray:
-        return self.encoded.poses * self.weights - self.prediction
+        return self.own_poses - self.prediction
+
+    @property
+    def own_poses(self) -> np.ndarray:
+        return self.encoded.poses * self.weights
 
     def _decode(self, poses: np.ndarray, root: np.ndarray | None, frames):
         return super()._decode(poses + self.prediction[frames], root, frames)
@@ -88,10 +97,18 @@ def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], tran
     best_size, best = len(basis.encode()) + sum(coding.size for coding in codings), None
     if tried is not None:
         tried.append({"model": "pca", "bytes": best_size})
-    paths, tensor, mean = _warped_tensor(clips, at)
+    try:
+        warped = _warped_tensor(clips, at)
+    except ValueError:  # no warping path (`timewarp`): the class stays PCA
+        warped = None
+    if warped is None:
+        return basis, codings, None
+    paths, tensor, mean = warped
     for frames_share, values_share, natural in RANKS:
         ranks = [max(1, round(frames_share * tensor.shape[0])), max(1, round(values_share * tensor.shape[1])),
                  *(tensor.shape[2:] if natural is None else [min(natural, n) for n in tensor.shape[2:]])]
+        if not _storable(tensor.shape, ranks):
+            continue
         core, factors = hooi(tensor, ranks)
         model = TensorModel.quantised(mean, core, factors, CORE_STEP_SHARE * settings.error_cm)
         residual = [predicted(clip, prediction(model, place, path)) for clip, place, path in zip(clips, at, paths)]
@@ -110,9 +127,24 @@ def _pays(tensor_bytes: int, best_bytes: int) -> bool:
     return tensor_bytes < best_bytes
 
 
+def _storable(shape, ranks) -> bool:
+    """Whether a model of these ranks is within what a reader takes (`TensorModel.decode`)."""
+    try:
+        for rows, columns in [*zip(shape, ranks), (ranks[0], math.prod(ranks[1:])), shape[:2]]:
+            check_matrix_shape(rows, columns)
+    except ValueError:
+        return False
+    return True
+
+
 def _warped_tensor(clips: list[LoadedClip], at: list[tuple[int, ...]]):
     """(each clip's warping path onto the longest clip, the tensor of warped weighted poses less
-    the class's mean pose: frames x values x natural modes, the mean)."""
+    the class's mean pose: frames x values x natural modes, the mean); None for a tensor of more
+    than MAX_TENSOR_VALUES values."""
+    levels = [max(place[k] for place in at) + 1 for k in range(len(at[0]))]
+    longest = max(clip.motion.n_frames for clip in clips)
+    if longest * clips[0].poses.shape[1] * math.prod(levels) > MAX_TENSOR_VALUES:
+        return None
     features = []
     for clip in clips:
         pose = forward(clip.model, clip.motion.values, clip.layout)
@@ -120,7 +152,6 @@ def _warped_tensor(clips: list[LoadedClip], at: list[tuple[int, ...]]):
     reference = int(np.argmax([len(f) for f in features]))  # the longest: no clip loses frames to the warp
     paths = [multiscale_dtw(features[reference], f, clip.fps).path for f, clip in zip(features, clips)]
     mean = np.concatenate([clip.poses for clip in clips]).mean(axis=0)
-    levels = [max(place[k] for place in at) + 1 for k in range(len(at[0]))]
     tensor = np.zeros((len(features[reference]), clips[0].poses.shape[1], *levels))
     for clip, place, path in zip(clips, at, paths):
         tensor[(slice(None), slice(None), *place)] = Warping(path, 0.0, 0).carried(clip.poses, onto=0) - mean

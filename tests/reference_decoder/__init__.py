@@ -100,9 +100,10 @@ def decode_archive(path, bvh_clips: dict | None = None) -> dict:
                     raise ValueError(f"{row['path']}: tensor_at, but class {k} is no tensor")
                 if k not in tensors:
                     tensors[k] = streams.tensor_model(container.read(f"tensor/{k:04d}"))
-                levels = meta["classes"][k]["levels"]
-                if [f.shape[0] for f in tensors[k][2][2:]] != [len(v) for v in levels]:
-                    raise ValueError(f"tensor/{k:04d}: not its class's grid")
+                levels, width = meta["classes"][k]["levels"], class_basis(k)[0].shape[0]
+                if [f.shape[0] for f in tensors[k][2][2:]] != [len(v) for v in levels] or \
+                        tensors[k][2][1].shape[0] != width:
+                    raise ValueError(f"tensor/{k:04d}: not its class's grid and pose width")
                 return streams.tensor_prediction(tensors[k], row["tensor_at"], container.read(f"warp/{index:05d}"),
                                                  row["frames"])
 

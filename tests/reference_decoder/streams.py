@@ -443,7 +443,10 @@ def tensor_model(data: bytes) -> tuple:
     (core_step,) = reader.unpack("f")
     if any(not 1 <= r <= n for r, n in zip(ranks, sizes)) or not (math.isfinite(core_step) and core_step > 0):
         raise ValueError(f"tensor: ranks {ranks} for sizes {sizes}, core step {core_step}")
-    shapes = [(sizes[1], 1), (ranks[0], int(np.prod(ranks[1:])))] + list(zip(sizes, ranks))
+    shapes = [(sizes[1], 1), (ranks[0], math.prod(ranks[1:]))] + list(zip(sizes, ranks))
+    for rows, columns in [(sizes[0], sizes[1]), *shapes]:  # the prediction L x M too
+        if rows > MAX_ROWS or columns > MAX_COLUMNS or rows * columns > MAX_VALUES:
+            raise ValueError(f"tensor: a {rows} x {columns} matrix, over the limits")
     mean, core, *factors = decode_matrices(reader.rest(), shapes, version=1)
     return (mean[:, 0].astype(np.float64) * MEAN_FACTOR,
             core.reshape(ranks).astype(np.float64) * float(core_step),
@@ -454,6 +457,8 @@ def tensor_prediction(model: tuple, at: list, moves_frame: bytes, frames: int) -
     """A tensor class's prediction of a clip (n x M): the model at levels `at` on the warped
     timeline, each clip frame the mean of the rows its `warp/NNNNN` path matches to it."""
     mean, core, factors = model
+    if len(at) != len(factors) - 2 or any(not 0 <= a < len(f) for a, f in zip(at, factors[2:])):
+        raise ValueError(f"tensor_at {at}: not a place of the model's grid")
     g = core
     for k in range(len(at), 0, -1):
         g = g @ factors[1 + k][at[k - 1]]
