@@ -35,9 +35,9 @@ from mocapzip.motion.timewarp import Warping, multiscale_dtw, path_moves
 from mocapzip.ratecontrol.encode import encode_class
 
 # ranks tried: of the frames and pose-value modes as shares of their sizes, and of each natural
-# mode (None: all its levels; 1: the class's one warped motion). On Bandai's walks at 1 cm the
-# model took 3.2 KB at the first, 6.3 KB at the second, against 19.4 KB for the whole class by
-# PCA, and saved its clips almost nothing (docs/seed_methods.md).
+# mode (None: all its levels; 1: the class's one warped motion). On the shared data the best of
+# them took 1.13 to 2.47 times PCA's bytes, and no class took the model (docs/seed_methods.md,
+# `python benchmarks/tensor.py --codec`).
 RANKS = ((1 / 32, 1 / 32, 1), (1 / 16, 1 / 16, 1), (1 / 8, 1 / 8, None))
 CORE_STEP_SHARE = 0.5  # the core's quantiser step, as a share of the error target
 MAX_TENSOR_VALUES = 1 << 25  # a larger class (256 MB of float64, and HOOI's copies of it) stays PCA
