@@ -520,7 +520,7 @@ def _code_classes(scan: _FirstPass, units: list[_Unit], unit_class: list[str], c
                 if settings.model == "tensor":  # which model each class took, and a tensor's grid
                     classes_meta[-1]["model"] = "pca" if tensor is None else "tensor"
                     if tensor is not None:
-                        writer.add(f"tensor/{k:04d}", tensor.model.encode())
+                        writer.add(f"tensor/{k:04d}", tensor.model_stream)
                         classes_meta[-1].update(modes=list(grids[k].modes), levels=[list(v) for v in grids[k].levels])
                 for j, (u, coding) in enumerate(zip(members, codings)):
                     unit = units[u]

@@ -78,12 +78,17 @@ class TensorClass:
     codings: list
 
     @cached_property
+    def model_stream(self) -> bytes:
+        """The model's `tensor/NNNN` stream, coded once: it is both measured and written."""
+        return self.model.encode()
+
+    @cached_property
     def moves(self) -> list[bytes]:
         return [encode_bytes(path_moves(path)) for path in self.paths]
 
     @property
     def size(self) -> int:
-        return (len(self.model.encode()) + sum(map(len, self.moves)) + len(self.basis.encode())
+        return (len(self.model_stream) + sum(map(len, self.moves)) + len(self.basis.encode())
                 + sum(coding.size for coding in self.codings))
 
 
@@ -114,7 +119,7 @@ def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], tran
         residual = [predicted(clip, prediction(model, place, path)) for clip, place, path in zip(clips, at, paths)]
         trial = TensorClass(model, at, paths, *encode_class(residual, transform, settings))
         if tried is not None:
-            tried.append({"model": "tensor", "ranks": ranks, "bytes": trial.size, "model_bytes": len(model.encode()),
+            tried.append({"model": "tensor", "ranks": ranks, "bytes": trial.size, "model_bytes": len(trial.model_stream),
                           "path_bytes": sum(map(len, trial.moves)), "basis_bytes": len(trial.basis.encode()),
                           "clip_bytes": sum(coding.size for coding in trial.codings)})
         if _pays(trial.size, best_size):
