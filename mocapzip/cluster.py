@@ -10,14 +10,14 @@ so the archive is byte-identical to `-j N`'s.
 
 A task's state is what a forked worker would have inherited: its function's module's `_SHARED`,
 and the module dicts named in `parallel.SHIPPED` (the encoder's clip loader). It is pickled once
-per map, scattered to every worker, and installed in a worker before its first task of the map,
+per map, sent as a task's argument (`Cluster._state`), fetched by each worker, and installed in a worker before its first task of the map,
 with the client's working folder as the worker's; a worker process runs one task at a time. Clips
 are not in it (except -c auto's, which compares every clip's poses): workers read them again from
 the paths the client found, so the data must be on storage the workers share with the client, at
 the same paths. A `ClipReader` pickles without the clips it keeps (`ClipReader.__getstate__`).
 
-Dask itself recovers from a lost worker: the scheduler gives its tasks to the others, and the
-state, scattered to every worker, survives in the rest. A task that keeps killing its workers
+Dask itself recovers from a lost worker: the scheduler gives its tasks to the others, and makes
+the state again if that worker held it. A task that keeps killing its workers
 (Dask's `allowed-failures`), a task Dask cannot run (a worker with another mcz), or a cluster that
 goes away ends the run with `ClusterError`; an item's own error ends it as with local workers.
 """
@@ -201,7 +201,7 @@ class Cluster:
         if not items:
             return
         window = len(items) if window is None else max(window, SMALLEST_WINDOW_PER_WORKER * self.workers)
-        state, state_id = self._scatter_state(function)
+        state, state_id = self._state(function)
         pending: deque = deque()
         queue = iter(enumerate(items))
 
@@ -228,14 +228,19 @@ class Cluster:
             if pending:
                 self.client.cancel(list(pending))
 
-    def _scatter_state(self, function):
-        """The map's state, pickled, on every worker (a lost worker's copy is not the only one)."""
+    def _state(self, function):
+        """The map's state, pickled, as a task that returns it: the scheduler holds the pickle, so it
+        makes the state again if the worker holding it dies. (Scattered data cannot be made again, and
+        Dask's memory manager keeps a single copy of it once no task waits for it.)"""
         shipped = [(function.__module__, "_SHARED"), *parallel.SHIPPED]
         blob = pickle.dumps((os.getcwd(), {(module, name): dict(getattr(importlib.import_module(module), name))
                                            for module, name in shipped}), protocol=pickle.HIGHEST_PROTOCOL)
         state_id = uuid.uuid4().hex[:12]
         self.state_ids.add(state_id)
-        return self.client.scatter(blob, broadcast=True, hash=False), state_id
+        import dask  # here: Dask is an optional extra, and a Cluster exists only if it is installed
+
+        with dask.config.set({"distributed.admin.large-graph-warning-threshold": f"{len(blob) + (1 << 20)}B"}):
+            return self.client.submit(_returned, blob, key=f"state-{state_id}", pure=False), state_id
 
     def _outcome(self, future):
         try:
@@ -248,6 +253,11 @@ class Cluster:
         with self._lock:
             self.done += 1
             self.bar.update(1)
+
+
+def _returned(blob: bytes) -> bytes:
+    """In a worker: a map's pickled state, as the task `Cluster._state` submits."""
+    return blob
 
 
 _INSTALLED = {"id": None, "dicts": []}  # in a worker: the state its module dicts hold now, and those dicts

@@ -304,3 +304,32 @@ def test_two_runs_on_one_scheduler_at_once(shared_data, tmp_path, two_workers):
     for name in subjects:
         mocapzip.compress([shared_data / "cmu" / name], tmp_path / f"{name}-j2.mcz", jobs=2)
         assert (tmp_path / f"{name}.mcz").read_bytes() == (tmp_path / f"{name}-j2.mcz").read_bytes()
+
+
+_SHARED: dict = {}  # the state `cluster.Cluster.imap` ships with `_doubled`'s map (empty here)
+
+
+def _doubled(item: int) -> int:
+    return 2 * item
+
+
+def test_a_map_whose_state_is_lost_with_its_worker_still_ends(two_workers):
+    """Dask's memory manager keeps one copy of a value once no task waits for it. If the worker that
+    holds the map's only copy of its state dies, Dask makes the state again (it is a task, not
+    scattered data, which Dask would forget, cancelling every task that needs it), and every result
+    comes back."""
+    with Client(two_workers) as client:
+        run = cluster.Cluster(client, local=True)
+        results = run.imap(_doubled, range(40))
+        assert next(results) == 0
+        holders = []
+        for _ in range(500):  # until the memory manager has dropped the spare copy
+            client.amm.run_once()
+            holders = [workers for key, workers in client.who_has().items() if key.startswith("state-")]
+            if len(holders) == 1 and len(holders[0]) == 1:
+                break
+            time.sleep(0.01)
+        assert len(holders) == 1 and len(holders[0]) == 1, holders
+        (pid,) = client.run(os.getpid, workers=list(holders[0])).values()
+        os.kill(pid, signal.SIGKILL)
+        assert list(results) == [2 * i for i in range(1, 40)]
