@@ -40,10 +40,10 @@ def main():
     """
 
 
-def jobs_option(work: str):
-    """-j/--jobs, as every command that spreads its work over worker processes takes it."""
+def jobs_option(work: str, workers: str = "Worker processes"):
+    """-j/--jobs, as every command that spreads its work over the cores takes it."""
     return click.option("-j", "--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1,
-                        show_default="all cores", help=f"Worker processes for {work}.")
+                        show_default="all cores", help=f"{workers} for {work}.")
 
 
 @main.command()
@@ -342,7 +342,7 @@ def _parse_split(text):
               help="Folder for the ASF/AMC and BVH files (not stdout: `-o -` is refused).")
 @click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
 @click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
-@jobs_option("decoding the clips (the files are written in the archive's order)")
+@jobs_option("decoding the clips (the files are written in the archive's order)", "Threads")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
 def decompress(archive_path, output, patterns, force, jobs, quiet):
@@ -450,7 +450,7 @@ def _clip_table(clips: list[dict], names: list[str]) -> None:
 
 @main.command("test")
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
-@jobs_option("decoding the clips")
+@jobs_option("decoding the clips", "Threads")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
 def test_archive(archive_path, jobs, quiet):

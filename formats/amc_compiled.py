@@ -56,13 +56,13 @@ _INVALID, _LEFT, _CONVERTED = 0, 1, 2  # what _number made of a token
 # --------------------------------------------------------------------------- reading
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _is_space(byte):
     """What bytes.split() splits on: space, tab, LF, VT, FF, CR."""
     return byte == 32 or 9 <= byte <= 13
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _number(buf, start, end):
     """The token at buf[start] (it ends at white space or `end`): (its end, value, kind,
     significant digits, decimals, exponent digits, has a dot).
@@ -123,7 +123,7 @@ def _number(buf, start, end):
     return i, (-value if negative else value), _CONVERTED, sig, decimals, exp_digits, has_dot
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _below_two53(buf, start, end):
     """Whether buf[start:end], every byte read as a digit (sign, dot and e as 0), is below
     2**53: then so are its mantissa and exponent (15 bytes or fewer always are)."""
@@ -135,7 +135,7 @@ def _below_two53(buf, start, end):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _new_stats():
     stats = np.zeros(_N_STATS, np.int64)
     stats[STAT_ALL_DOT] = 1
@@ -144,7 +144,7 @@ def _new_stats():
     return stats
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _count(stats, sig, decimals, exp_digits, has_dot):
     """Add a valid token to `stats`: what `amc._number_style` needs of all of them."""
     if stats[STAT_COUNT] == 0:
@@ -160,7 +160,7 @@ def _count(stats, sig, decimals, exp_digits, has_dot):
     stats[STAT_MAX_SIG] = max(stats[STAT_MAX_SIG], sig)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def scan_tokens(buf, n_tokens):
     """Values and statistics of the `n_tokens` tokens of `buf`, joined by single spaces.
 
@@ -178,7 +178,7 @@ def scan_tokens(buf, n_tokens):
     return values, stats
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _line_end(body, pos, end):
     """Past the end of the line at `pos` (after blanks; `end` at the end of the body), or -1
     where something else than blanks comes first, or a CR that is not part of CRLF."""
@@ -193,7 +193,7 @@ def _line_end(body, pos, end):
     return -1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def scan_frames(body, names, name_ends, counts, allowed, max_frame_number, max_abs_value):
     """Read `body` (from the first frame number on) as the usual layout: a line holding only the
     frame number, then one line for each bone of `names` (concatenated, ending at `name_ends`),
@@ -279,7 +279,7 @@ def scan_frames(body, names, name_ends, counts, allowed, max_frame_number, max_a
     return LAYOUT_OK, first, n_frames, values, faults, left, stats
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def scan_lines(body, n_lines, width, max_abs_value):
     """Read `body` as `n_lines` lines of `width` numbers each (a BVH file's frames, `bvh.parse_bvh`):
     numbers separated by blanks, lines ending in LF, CRLF or CR, blank lines and blanks allowed
@@ -326,7 +326,7 @@ def scan_lines(body, n_lines, width, max_abs_value):
 # --------------------------------------------------------------------------- writing
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _put_digits(out, end, n, count):
     """The last `count` digits of `n` >= 0 (zero-padded) into out[end - count:end]; returns
     n // 10**count. Two digits a step: each division costs more than the table look-up."""
@@ -343,7 +343,7 @@ def _put_digits(out, end, n, count):
     return n
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _n_digits(n):
     count = 1
     while n >= 10:
@@ -352,7 +352,7 @@ def _n_digits(n):
     return count
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _round_half_even(s):
     """round(s) for 0 <= s < 2**52, or -1 where s is exactly a half (the exact value it stands
     for may lie on either side)."""
@@ -363,7 +363,7 @@ def _round_half_even(s):
     return int(whole) + (1 if fraction > 0.5 else 0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _put_point(out, pos, n, int_digits, zeros, fraction):
     """At out[pos:]: the digits of `n` but its last `fraction` (`int_digits` of them,
     zero-padded), `zeros` zeros, then a point and those last digits (no point without them).
@@ -378,7 +378,7 @@ def _put_point(out, pos, n, int_digits, zeros, fraction):
     return end
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _put_int(out, pos, x):
     """'%d' % x at out[pos:]; returns the end, or -1 to leave it to Python."""
     if not abs(x) < 2.0**62:
@@ -393,7 +393,7 @@ def _put_int(out, pos, x):
     return pos + count
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _put_fixed(out, pos, x, decimals):
     """'%.<decimals>f' % x at out[pos:]; returns the end, or -1 to leave it to Python.
 
@@ -414,7 +414,7 @@ def _put_fixed(out, pos, x, decimals):
     return _put_point(out, pos, n, _n_digits(n // _I10[decimals]) if decimals < 19 else 1, 0, decimals)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _put_general(out, pos, x, p, width):
     """'%.<p>g' % x at out[pos:] with at least `width` exponent digits; returns the end, or -1
     to leave it to Python.
@@ -482,7 +482,7 @@ def _put_general(out, pos, x, p, width):
     return _put_point(out, pos, n, 1, 0, kept - exponent - 1)  # 0.000ddd
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _grown(array):
     """A copy of 1-d `array` twice as long (a loop: a slice assignment compiles string
     formatting for its error message, seconds of cold start)."""
@@ -492,7 +492,7 @@ def _grown(array):
     return larger
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _note(hard, n_hard, at, item):
     """hard[n_hard] = (at, item), in a larger copy of `hard` when it is full."""
     if n_hard == hard.shape[0]:
@@ -502,7 +502,7 @@ def _note(hard, n_hard, at, item):
     return hard
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _put(out, pos, text, start, end):
     """text[start:end] at out[pos:] (a loop: slicing costs more for so few bytes)."""
     for j in range(start, end):
@@ -511,7 +511,7 @@ def _put(out, pos, text, start, end):
     return pos
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def format_frames(values, frames, names, name_ends, counts, separator, newline, frame_newline, fixed, digits, width):
     """The frame lines of an AMC file as bytes: each frame's number (`%d` of `frames`, float64),
     then one line for each bone (`names` concatenated, ending at `name_ends`; `counts` values

@@ -1,4 +1,4 @@
-"""Worker processes: the one place where mcz spreads work over the cores `-j` gives.
+"""Worker processes and threads: the one place where mcz spreads work over the cores `-j` gives.
 
 Workers are forked, so they inherit what the parent holds when the pool starts (clips kept
 in memory, an opened archive, what a module put in its `_SHARED` for them) instead of
@@ -15,8 +15,12 @@ each item raised, given in the parent at the item's turn. What it adds: workers 
 outlive the parent, and a Ctrl-C or a `kill` of the parent's process group is the parent's
 to handle (one message, its clean-up), not every worker's.
 
+Decoding runs on threads instead (`thread_imap`): its time is spent in compiled code that
+releases the GIL (numba kernels with nogil, h5py, numpy, scipy's DCT), and its results, whole
+AMC files, would otherwise be pickled from worker to parent.
+
 mcz's work runs on one BLAS thread per process (`one_blas_thread`): its matrices are small,
-and it gets its parallelism from worker processes, one per core.
+and it gets its parallelism from worker processes (or threads), one per core.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ import traceback
 import warnings
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, wait
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, wait
 from contextlib import contextmanager
 
 from threadpoolctl import threadpool_limits
@@ -223,6 +227,35 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
         for future in pending:
             future.cancel()
         _shut(pool, others)
+
+
+def thread_imap(function: Callable, items: Sequence, jobs: int, window: int) -> Iterator:
+    """`function(item)` for each of `items`, yielded in order, computed by `jobs` threads of this
+    process (or here, one at a time, for one job). For work whose time is spent outside the GIL:
+    decoding (`Archive.made_files`). At most `window` items are in flight. An item that raised
+    raises here, at its turn; when the iteration stops early, the items not started are cancelled
+    and the running ones (at most `jobs`) finish first. Warnings are shown as each item raises
+    them, not at its turn."""
+    if jobs <= 1 or len(items) < 2:
+        for item in items:
+            yield function(item)
+        return
+    pool = ThreadPoolExecutor(min(jobs, len(items)), thread_name_prefix="mcz-decode")
+    pending: deque = deque()
+    try:
+        queue = iter(items)
+
+        def submit() -> None:
+            for item in itertools.islice(queue, max(1, window) - len(pending)):
+                pending.append(pool.submit(function, item))
+
+        submit()
+        while pending:
+            result = pending.popleft().result()
+            submit()
+            yield result
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _result(future):

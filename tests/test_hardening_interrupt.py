@@ -65,11 +65,12 @@ main(prog_name="mcz")
 
 # Runs the real `mcz` with one function held: its first call, in whichever process makes it, creates
 # the marker file and waits for the test's release file (or for the signal, in the main process).
-# With MCZ_TEST_HOLD_IN_WORKER set, only a worker process's call is held (with -j, the main process
-# runs the first item itself, before forking: `parallel.imap`).
+# With MCZ_TEST_HOLD_IN_WORKER set, only a call away from the main process's main thread is held: a
+# worker process's (compress; with -j, the main process runs the first item itself, before forking:
+# `parallel.imap`) or a decoding thread's (decompress: `parallel.thread_imap`).
 # HELD_CHILD.format(module=..., name=...) holds `module.name` (a function or a method).
 HELD_CHILD = r"""
-import importlib, os, sys, time
+import importlib, os, sys, threading, time
 from pathlib import Path
 from mocapzip.cli.main import main
 
@@ -81,7 +82,8 @@ for part in "{name}".split(".")[:-1]:
 real = getattr(owner, "{name}".split(".")[-1])
 
 def held(*args, **kwargs):
-    if os.environ.get("MCZ_TEST_HOLD_IN_WORKER") and os.getpid() == main_pid:
+    in_main = os.getpid() == main_pid and threading.current_thread() is threading.main_thread()
+    if os.environ.get("MCZ_TEST_HOLD_IN_WORKER") and in_main:
         return real(*args, **kwargs)
     if not marker.exists():
         marker.touch()
@@ -183,7 +185,8 @@ def test_decompress_interrupted_while_writing_an_amc(tmp_path, signum, jobs):
 def test_ctrl_c_in_a_terminal_stops_every_worker_in_one_line(shared_data, tmp_path, command):
     """Ctrl-C in a terminal sends SIGINT to the whole process group, workers included (-j 2): the
     parent alone answers, in one line (no worker traceback), and leaves nothing behind. The signal
-    comes while a worker holds its first clip (a state, not a clock)."""
+    comes while a worker process (compress) or a decoding thread (decompress) holds its first clip
+    (a state, not a clock)."""
     out, marker = tmp_path / "out", tmp_path / "marker"
     out.mkdir()
     env = {**os.environ, "MCZ_TEST_MARKER": str(marker), "MCZ_TEST_HOLD_IN_WORKER": "1"}
@@ -205,12 +208,14 @@ def test_ctrl_c_in_a_terminal_stops_every_worker_in_one_line(shared_data, tmp_pa
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="finds the workers through /proc (Linux)")
-def test_a_worker_killed_mid_run_ends_the_run_in_one_line(tmp_path):
-    """A worker of decompress -j 2 killed (as the OOM killer would) while it holds its first file: the
+def test_a_worker_killed_mid_run_ends_the_run_in_one_line(shared_data, tmp_path):
+    """A worker of compress -j 2 killed (as the OOM killer would) while it holds its first clip: the
     parent says so in one line, exits 1, and leaves no file behind."""
     out, marker = tmp_path / "out", tmp_path / "marker"
+    out.mkdir()
     env = {**os.environ, "MCZ_TEST_MARKER": str(marker), "MCZ_TEST_HOLD_IN_WORKER": "1"}
-    proc = start([sys.executable, "-c", DECODING_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out, "-j", "2"], env)
+    proc = start([sys.executable, "-c", CODING_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz",
+                  "-j", "2"], env)
     wait_for(marker, proc)
     workers = [int(entry) for entry in os.listdir("/proc") if entry.isdigit() and _parent_of(int(entry)) == proc.pid]
     assert len(workers) == 2, workers
@@ -220,7 +225,7 @@ def test_a_worker_killed_mid_run_ends_the_run_in_one_line(tmp_path):
     assert proc.returncode == 1, (proc.returncode, stderr)
     assert stderr.splitlines() == ["mcz: error: a worker process ended abruptly (killed, or out of memory); "
                                    "no partial file was left behind"], stderr
-    assert_only_whole_files(out, tmp_path, "decompress")
+    assert_only_whole_files(out, tmp_path, "compress")
 
 
 def assert_only_whole_files(out: Path, tmp_path: Path, command: str) -> None:

@@ -1,6 +1,6 @@
-"""Work on the cores `-j` gives (issue 15, deliverable 3): the first pass, the priors, decompress
-and `mcz test` in worker processes give what one process gives (the same archive, files,
-errors and warnings), hold only a few results at once, and stop cleanly on an error.
+"""Work on the cores `-j` gives (issue 15, deliverable 3): the first pass and the priors in worker
+processes, decompress and `mcz test` on threads, give what one process gives (the same archive,
+files, errors and warnings), hold only a few results at once, and stop cleanly on an error.
 
 Behaviour only: nothing here depends on how fast anything runs.
 """
@@ -24,7 +24,7 @@ from mocapzip.archive.writer import _serialise_clips
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveReader
-from mocapzip.parallel import imap, kept_workers, parallel_map
+from mocapzip.parallel import imap, kept_workers, parallel_map, thread_imap
 from mocapzip.progress import progress
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -71,33 +71,47 @@ def test_results_and_warnings_come_in_item_order(jobs):
     assert parallel_map(abs, [-2, 1, -3], jobs) == [2, 1, 3]
 
 
+def _nothing_left_running() -> bool:
+    return multiprocessing.active_children() == [] and not any(
+        thread.name.startswith("mcz-decode") for thread in threading.enumerate())
+
+
 @pytest.mark.parametrize("jobs", [1, 2])
-def test_a_failing_item_raises_at_its_turn_with_its_message(jobs):
+def test_threads_give_results_in_item_order(jobs):
+    assert list(thread_imap(abs, range(-6, 6), jobs, window=3)) == [abs(i) for i in range(-6, 6)]
+    assert _nothing_left_running()
+
+
+@pytest.mark.parametrize("spread", [imap, thread_imap])
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_failing_item_raises_at_its_turn_with_its_message(jobs, spread):
     got = []
     with pytest.raises(MocapFormatError) as failure:
-        for result in imap(_fails_at_three, range(10), jobs, window=4):
+        for result in spread(_fails_at_three, range(10), jobs, window=4):
             got.append(result)
     assert got == [0, 1, 2]  # the results before it, none after
     assert str(failure.value) == "some/file.amc:7: item 3 is bad"
-    assert multiprocessing.active_children() == []  # no worker left behind
+    assert _nothing_left_running()  # no worker left behind
 
 
-def test_at_most_a_window_of_items_is_in_flight(tmp_path):
+@pytest.mark.parametrize("spread", [imap, thread_imap])
+def test_at_most_a_window_of_items_is_in_flight(tmp_path, spread):
     """However fast the workers are, no more than `window` items beyond those consumed are handed out."""
     window, items = 3, [(os.fspath(tmp_path), i) for i in range(20)]
-    for consumed, result in enumerate(imap(_note_start, items, 2, window=window), start=1):
+    for consumed, result in enumerate(spread(_note_start, items, 2, window=window), start=1):
         assert result == consumed - 1
         assert len(os.listdir(tmp_path)) <= consumed + window
     assert len(os.listdir(tmp_path)) == len(items)
 
 
-def test_stopping_early_cancels_what_has_not_started(tmp_path):
+@pytest.mark.parametrize("spread", [imap, thread_imap])
+def test_stopping_early_cancels_what_has_not_started(tmp_path, spread):
     window, items = 2, [(os.fspath(tmp_path), i) for i in range(50)]
-    results = imap(_note_start, items, 2, window=window)
+    results = spread(_note_start, items, 2, window=window)
     assert [next(results), next(results)] == [0, 1]
     results.close()  # waits for the items the workers hold, cancels the others
     assert len(os.listdir(tmp_path)) <= 2 + window
-    assert multiprocessing.active_children() == []
+    assert _nothing_left_running()
 
 
 _SHARED: dict = {}  # what `kept_workers` sends the workers of the maps below
@@ -156,8 +170,9 @@ def test_progress_bars_start_no_thread_that_workers_would_fork_with():
             assert set(threading.enumerate()) <= before
 
 
-# Runs the real `mcz` with its second fork refused, as under a process limit (EAGAIN).
-SECOND_FORK_REFUSED = r"""
+# Runs the real `mcz` with its second fork refused (or every fork: FORKS_ALLOWED 0), as under a
+# process limit (EAGAIN).
+FORKS_REFUSED = r"""
 import errno, os
 from mocapzip.cli.main import main
 
@@ -165,7 +180,7 @@ real_fork, forks = os.fork, []
 
 def fork():
     forks.append(None)
-    if len(forks) == 2:
+    if len(forks) > FORKS_ALLOWED:
         raise OSError(errno.EAGAIN, os.strerror(errno.EAGAIN))
     return real_fork()
 
@@ -174,14 +189,28 @@ main(prog_name="mcz")
 """
 
 
-def test_a_pool_that_cannot_start_all_its_workers_ends_the_run(tmp_path):
-    """One worker started, the second refused: one line, exit 1, and no wait for the first at exit."""
-    out = tmp_path / "out"
-    result = subprocess.run([sys.executable, "-c", SECOND_FORK_REFUSED, "decompress", GOLDEN / "lossy_v4.mcz",
-                             "-o", out, "-j", "2"], capture_output=True, text=True, timeout=DEADLINE)
+def test_a_pool_that_cannot_start_all_its_workers_ends_the_run(tmp_path, shared_data):
+    """One worker started, the second refused: one line, exit 1, no archive, and no wait for the
+    first at exit."""
+    out = tmp_path / "07.mcz"
+    result = subprocess.run([sys.executable, "-c", "FORKS_ALLOWED = 1\n" + FORKS_REFUSED, "compress",
+                             shared_data / "cmu" / "07", "-o", out, "-j", "2", "-q"],
+                            capture_output=True, text=True, timeout=DEADLINE)
     assert result.returncode == 1
-    assert result.stderr == "mcz: error: [Errno 11] Resource temporarily unavailable\n"
-    assert files_under(out) == {}
+    assert result.stderr.splitlines()[-1] == "mcz: error: [Errno 11] Resource temporarily unavailable"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_decompress_and_test_with_two_jobs_need_no_new_process(tmp_path):
+    """They decode on threads: under a limit that refuses every fork, -j 2 writes what -j 1 writes."""
+    archive = GOLDEN / "lossy_v4.mcz"
+    out = tmp_path / "out"
+    for command in (["decompress", archive, "-o", out, "-j", "2", "-q"], ["test", archive, "-j", "2", "-q"]):
+        result = subprocess.run([sys.executable, "-c", "FORKS_ALLOWED = 0\n" + FORKS_REFUSED, *command],
+                                capture_output=True, text=True, timeout=DEADLINE)
+        assert (result.returncode, result.stderr) == (0, "")
+    decompress(archive, tmp_path / "one", jobs=1)
+    assert files_under(out) == files_under(tmp_path / "one") and len(files_under(out)) >= 3
 
 
 # --------------------------------------------------------------------------- decompress and test

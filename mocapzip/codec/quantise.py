@@ -57,7 +57,7 @@ class UniformQuantiser(Stage):
         return {"step": self.step, "dead_zone": self.dead_zone}
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _quantise(x, step, dead_zone, out):
     """The class docstring's formula, in one pass (the rate control quantises tens of thousands
     of times per database; numpy's six passes took 2.6 s of 36 on the shared CMU set). False

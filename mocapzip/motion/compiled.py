@@ -31,7 +31,7 @@ POW10 = np.power(10.0, np.arange(-300, 301).astype(np.float64))  # as round_as_w
 
 # ----------------------------------------------------------------------------- scalar helpers
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _npmod(a, b):
     """numpy's float remainder (npy_divmod): fmod, moved to the sign of b."""
     m = np.fmod(a, b)
@@ -43,7 +43,7 @@ def _npmod(a, b):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mod2pi(y):
     """numpy's y % (2 pi), bit for bit: fmod is exact, so within one period either side of
     [0, 2 pi) the result is y, y + 2 pi or y - 2 pi (exact by Sterbenz) without calling fmod."""
@@ -57,13 +57,13 @@ def _mod2pi(y):
     return _npmod(y, TWO_PI)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _wrap(x):
     """rotations.wrap: (x + pi) % (2 pi) - pi."""
     return _mod2pi(x + PI) - PI
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _axis_rot(k, angle, out):
     """rotations.axis_rotation (row convention) into out (3, 3)."""
     b = (k + 1) % 3
@@ -80,7 +80,25 @@ def _axis_rot(k, angle, out):
     out[c, b] = -si
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _load(stack, i, out):
+    """out = stack[i] (3x3), copied element by element: `stack[i]` would make a view, and numba
+    counts each view's references with atomic operations, which cost decode_channels a fifth of
+    its time when it made one per joint and frame."""
+    for r in range(3):
+        for k in range(3):
+            out[r, k] = stack[i, r, k]
+
+
+@njit(cache=True, nogil=True)
+def _store(m, stack, i):
+    """stack[i] = m (3x3), without a view (`_load`)."""
+    for r in range(3):
+        for k in range(3):
+            stack[i, r, k] = m[r, k]
+
+
+@njit(cache=True, nogil=True)
 def _mm(a, b, out):
     """out = a @ b (3x3), sums in index order."""
     for i in range(3):
@@ -91,7 +109,7 @@ def _mm(a, b, out):
             out[i, k] = a0 * b[0, k] + a1 * b[1, k] + a2 * b[2, k]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mtm(a, b, out):
     """out = a^T @ b (3x3)."""
     for i in range(3):
@@ -102,7 +120,7 @@ def _mtm(a, b, out):
             out[i, k] = a0 * b[0, k] + a1 * b[1, k] + a2 * b[2, k]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mmt(a, b, out):
     """out = a @ b^T (3x3)."""
     for i in range(3):
@@ -113,7 +131,7 @@ def _mmt(a, b, out):
             out[i, k] = a0 * b[k, 0] + a1 * b[k, 1] + a2 * b[k, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _angle_about_m(k, m):
     """rotations.angle_about for one matrix."""
     b = (k + 1) % 3
@@ -121,7 +139,7 @@ def _angle_about_m(k, m):
     return math.atan2(m[b, c] - m[c, b], m[b, b] + m[c, c])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _unwrap_inplace(p):
     """np.unwrap (period 2 pi, discont pi) of a 1-D array, in place."""
     n = p.shape[0]
@@ -141,7 +159,7 @@ def _unwrap_inplace(p):
         prev = cur
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pairwise_leaf(a, lo, n):
     """numpy's pairwise_sum_DOUBLE for n <= 128 (PW_BLOCKSIZE)."""
     if n < 8:
@@ -176,7 +194,7 @@ def _pairwise_leaf(a, lo, n):
     return res
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pairwise_sum(a, lo, n):
     """numpy's pairwise_sum_DOUBLE over a[lo:lo+n], its recursion unrolled onto a stack
     (recursive njit functions crash when loaded from numba's cache)."""
@@ -226,7 +244,7 @@ def _pairwise_sum(a, lo, n):
     return vals[0]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def np_sum(a):
     """np.sum of a contiguous 1-D float64 array (add.reduce: pairwise summation), bit for bit
     as checked in compare.py."""
@@ -235,14 +253,14 @@ def np_sum(a):
 
 # ----------------------------------------------------------------------------- euler fits
 
-@njit(cache=True)
-def _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res):
+@njit(cache=True, nogil=True)
+def _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res, m):
     """rotations._tait_bryan over frames (gimbal-locked frames carry the latest unlocked first angle)."""
     sign = 1.0 if (b - a) % 3 == 1 else -1.0
     have_free = False
     free_first = 0.0
     for f in range(locals_j.shape[0]):
-        m = locals_j[f]
+        _load(locals_j, f, m)
         cos_middle = math.hypot(m[b, c], m[c, c])
         fi = math.atan2(sign * m[b, c], m[c, c])
         mi = math.atan2(-sign * m[a, c], cos_middle)
@@ -260,14 +278,14 @@ def _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res):
         last[f] = _angle_about_m(c, res)
 
 
-@njit(cache=True)
-def _euler3(locals_j, a, b, c, out_angles, work, ra, rb, rp, res):
+@njit(cache=True, nogil=True)
+def _euler3(locals_j, a, b, c, out_angles, work, ra, rb, rp, res, m):
     """rotations.euler_angles for 3 axes: _tait_bryan, _continuous (branch parity), np.unwrap."""
     n = locals_j.shape[0]
     first = work[0]
     middle = work[1]
     last = work[2]
-    _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res)
+    _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res, m)
     parity = False
     for f in range(n):
         if f > 0:
@@ -293,8 +311,8 @@ def _euler3(locals_j, a, b, c, out_angles, work, ra, rb, rp, res):
         _unwrap_inplace(out_angles[i])
 
 
-@njit(cache=True)
-def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res):
+@njit(cache=True, nogil=True)
+def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res, m):
     """rotations.euler_angles for 2 axes: _two_axis_fit (all frames iterate together, as the
     numpy code's global stopping test does), then np.unwrap."""
     n = locals_j.shape[0]
@@ -302,7 +320,7 @@ def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res):
     first = out_angles[0]
     second = out_angles[1]
     third = work[2]
-    _tait_bryan_all(locals_j, a0, a1, missing, first, second, third, ra, rb, rp, res)
+    _tait_bryan_all(locals_j, a0, a1, missing, first, second, third, ra, rb, rp, res, m)
     for f in range(n):
         if abs(_wrap(third[f] + PI)) < abs(_wrap(third[f])):
             first[f] = first[f] + PI
@@ -311,7 +329,7 @@ def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res):
         worst = 0.0
         nan = False
         for f in range(n):
-            m = locals_j[f]
+            _load(locals_j, f, m)
             bf = first[f]
             bs = second[f]
             _axis_rot(a1, bs, rb)
@@ -336,16 +354,17 @@ def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res):
     _unwrap_inplace(second)
 
 
-@njit(cache=True)
-def _euler1(locals_j, a, out_angles):
+@njit(cache=True, nogil=True)
+def _euler1(locals_j, a, out_angles, m):
     for f in range(locals_j.shape[0]):
-        out_angles[0, f] = _angle_about_m(a, locals_j[f])
+        _load(locals_j, f, m)
+        out_angles[0, f] = _angle_about_m(a, m)
     _unwrap_inplace(out_angles[0])
 
 
 # ----------------------------------------------------------------------------- decode tail
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _orthonormal(x0, x1, x2, y0, y1, y2, out):
     """rotations.orthonormal_frame for one (x, y) pair: rows x, y', z."""
     nx = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
@@ -373,7 +392,7 @@ def _orthonormal(x0, x1, x2, y0, y1, y2, out):
     out[2, 2] = x0 * y1 - x1 * y0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_root,
                     parents, faux, pos_col, y_col, x_col, root_ax_col, root_proxy,
                     solved, sol_u, sol_nrot, sol_a0, sol_a1, sol_radius, sol_phase, sol_ref,
@@ -388,7 +407,7 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
     NR = flips_in.shape[0]
     values = np.zeros((F, width))
     flips_out = np.zeros((NR, F), dtype=np.bool_)
-    locals_ = np.empty((J, F, 3, 3))
+    locals_ = np.empty((J * F, 3, 3))  # joint j's local rotations at rows j F to (j + 1) F
     pos = np.zeros((J, 3))
     R = np.empty((J, 3, 3))
     W = np.empty((J, 3, 3))
@@ -405,6 +424,9 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
     sa1 = np.empty((3, 3))
     sb0 = np.empty((3, 3))
     sb1 = np.empty((3, 3))
+    c_j = np.empty((3, 3))  # axis[j]
+    r_p = np.empty((3, 3))  # R[parents[j]]
+    m = np.empty((3, 3))
     for f in range(F):
         # positions as stored (root zero without root)
         for j in range(J):
@@ -438,33 +460,38 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
                 x1 = pos[j, 1] - pos[p, 1]
                 x2 = pos[j, 2] - pos[p, 2]
             _orthonormal(x0, x1, x2, y0, y1, y2, fr)
-            _mtm(faux[j], fr, R[j])
+            _load(faux, j, t1)
+            _mtm(t1, fr, t2)
+            _store(t2, R, j)
         if root_proxy >= 0:
-            R[0, :, :] = R[root_proxy]
+            _load(R, root_proxy, t1)
         else:
             rc = root_ax_col
             _orthonormal(poses[f, rc] / weights[rc], poses[f, rc + 1] / weights[rc + 1],
                          poses[f, rc + 2] / weights[rc + 2], poses[f, rc + 3] / weights[rc + 3],
-                         poses[f, rc + 4] / weights[rc + 4], poses[f, rc + 5] / weights[rc + 5], R[0])
+                         poses[f, rc + 4] / weights[rc + 4], poses[f, rc + 5] / weights[rc + 5], t1)
+        _store(t1, R, 0)
         # solved bones, parents first (solve_local)
         for s in range(solved.shape[0]):
             j = solved[s]
             p = parents[j]
-            c = axis[j]
+            _load(axis, j, c_j)
             b0 = pos[j, 0] - pos[p, 0]
             b1 = pos[j, 1] - pos[p, 1]
             b2 = pos[j, 2] - pos[p, 2]
-            Rp = R[p]
+            _load(R, p, r_p)
             # (bone @ R_p^T) @ C^T
-            q0 = b0 * Rp[0, 0] + b1 * Rp[0, 1] + b2 * Rp[0, 2]
-            q1 = b0 * Rp[1, 0] + b1 * Rp[1, 1] + b2 * Rp[1, 2]
-            q2 = b0 * Rp[2, 0] + b1 * Rp[2, 1] + b2 * Rp[2, 2]
-            tt0 = q0 * c[0, 0] + q1 * c[0, 1] + q2 * c[0, 2]
-            tt1 = q0 * c[1, 0] + q1 * c[1, 1] + q2 * c[1, 2]
-            tt2 = q0 * c[2, 0] + q1 * c[2, 1] + q2 * c[2, 2]
+            q0 = b0 * r_p[0, 0] + b1 * r_p[0, 1] + b2 * r_p[0, 2]
+            q1 = b0 * r_p[1, 0] + b1 * r_p[1, 1] + b2 * r_p[1, 2]
+            q2 = b0 * r_p[2, 0] + b1 * r_p[2, 1] + b2 * r_p[2, 2]
+            tt0 = q0 * c_j[0, 0] + q1 * c_j[0, 1] + q2 * c_j[0, 2]
+            tt1 = q0 * c_j[1, 0] + q1 * c_j[1, 1] + q2 * c_j[1, 2]
+            tt2 = q0 * c_j[2, 0] + q1 * c_j[2, 1] + q2 * c_j[2, 2]
             nt = max(math.sqrt(tt0 * tt0 + tt1 * tt1 + tt2 * tt2), 1e-300)
             tv = (tt0 / nt, tt1 / nt, tt2 / nt)
-            u = sol_u[j]
+            u0 = sol_u[j, 0]
+            u1 = sol_u[j, 1]
+            u2 = sol_u[j, 2]
             nr = sol_nrot[j]
             if nr == 0:
                 for i in range(3):
@@ -492,14 +519,14 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
                 c2_ = (a2 + 2) % 3
                 s0 = _wrap(turn0 - phase)
                 _axis_rot(a, s0, sa0)
-                v_b = u[0] * sa0[0, b2_] + u[1] * sa0[1, b2_] + u[2] * sa0[2, b2_]
-                v_c = u[0] * sa0[0, c2_] + u[1] * sa0[1, c2_] + u[2] * sa0[2, c2_]
+                v_b = u0 * sa0[0, b2_] + u1 * sa0[1, b2_] + u2 * sa0[2, b2_]
+                v_c = u0 * sa0[0, c2_] + u1 * sa0[1, c2_] + u2 * sa0[2, c2_]
                 at = math.atan2(tv[c2_], tv[b2_])
                 r0 = _wrap(at - math.atan2(v_c, v_b))
                 s1 = _wrap(turn1 - phase)
                 _axis_rot(a, s1, sa1)
-                v_b = u[0] * sa1[0, b2_] + u[1] * sa1[1, b2_] + u[2] * sa1[2, b2_]
-                v_c = u[0] * sa1[0, c2_] + u[1] * sa1[1, c2_] + u[2] * sa1[2, c2_]
+                v_b = u0 * sa1[0, b2_] + u1 * sa1[1, b2_] + u2 * sa1[2, b2_]
+                v_c = u0 * sa1[0, c2_] + u1 * sa1[1, c2_] + u2 * sa1[2, c2_]
                 r1 = _wrap(at - math.atan2(v_c, v_b))
                 other = max(abs(s1), abs(r1)) < max(abs(s0), abs(r0))
                 _axis_rot(a2, r0, sb0)
@@ -508,20 +535,18 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
                 if use_ref:
                     _mm(sa0, sb0, sol0)
                     _mm(sa1, sb1, sol1)
-                    ref_m = ref[f, ri]
                     n0 = 0.0
                     n1 = 0.0
                     for i in range(3):
                         for k in range(3):
-                            n0 += sol0[i, k] * ref_m[i, k]
-                            n1 += sol1[i, k] * ref_m[i, k]
+                            n0 += sol0[i, k] * ref[f, ri, i, k]
+                            n1 += sol1[i, k] * ref[f, ri, i, k]
                     chosen = n1 > n0
                     flips_out[ri, f] = chosen != other
                     other = chosen
-                    if other:
-                        t3[:, :] = sol1
-                    else:
-                        t3[:, :] = sol0
+                    for i in range(3):
+                        for k in range(3):
+                            t3[i, k] = sol1[i, k] if other else sol0[i, k]
                 else:
                     if ri >= 0:
                         other = other != flips_in[ri, f]
@@ -531,20 +556,24 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
                     else:
                         _mm(sa0, sb0, t3)
             # R_j = ((C^T @ local) @ C) @ R_p
-            _mtm(c, t3, t1)
-            _mm(t1, c, t2)
-            _mm(t2, Rp, R[j])
+            _mtm(c_j, t3, t1)
+            _mm(t1, c_j, t2)
+            _mm(t2, r_p, t1)
+            _store(t1, R, j)
         # world rotations: aligned family turns by the heading
         if has_track:
             _axis_rot(1, root[f, 3], turn)
             for j in range(J):
-                _mm(R[j], turn, W[j])
+                _load(R, j, t1)
+                _mm(t1, turn, t2)
+                _store(t2, W, j)
             rx = root[f, 0]
             ry = root[f, 1]
             rz = root[f, 2]
         else:
             for j in range(J):
-                W[j, :, :] = R[j]
+                _load(R, j, t1)
+                _store(t1, W, j)
             rx = pos[0, 0]
             ry = pos[0, 1]
             rz = pos[0, 2]
@@ -553,23 +582,25 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
             cs = col_start[j]
             if cs < 0:
                 continue
-            c = axis[j]
+            _load(axis, j, c_j)
             if nrot[j] > 0:
                 # bone_frame_t = R_j^T @ C^T
                 for i in range(3):
                     for k in range(3):
-                        t1[i, k] = W[j, 0, i] * c[k, 0] + W[j, 1, i] * c[k, 1] + W[j, 2, i] * c[k, 2]
+                        t1[i, k] = W[j, 0, i] * c_j[k, 0] + W[j, 1, i] * c_j[k, 1] + W[j, 2, i] * c_j[k, 2]
                 p = parents[j]
                 if p < 0:
                     # t1^T @ C^T
                     for i in range(3):
                         for k in range(3):
-                            locals_[j, f, i, k] = t1[0, i] * c[k, 0] + t1[1, i] * c[k, 1] + t1[2, i] * c[k, 2]
+                            locals_[j * F + f, i, k] = (t1[0, i] * c_j[k, 0] + t1[1, i] * c_j[k, 1]
+                                                        + t1[2, i] * c_j[k, 2])
                 else:
                     for i in range(3):
                         for k in range(3):
-                            t2[i, k] = W[p, 0, i] * c[k, 0] + W[p, 1, i] * c[k, 1] + W[p, 2, i] * c[k, 2]
-                    _mtm(t1, t2, locals_[j, f])
+                            t2[i, k] = W[p, 0, i] * c_j[k, 0] + W[p, 1, i] * c_j[k, 1] + W[p, 2, i] * c_j[k, 2]
+                    _mtm(t1, t2, t3)
+                    _store(t3, locals_, j * F + f)
             for k in range(nchan[j]):
                 if chan_kind[j, k] == 1:
                     ax = chan_axis[j, k]
@@ -583,13 +614,13 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
         n = nrot[j]
         if cs < 0 or n == 0:
             continue
-        lj = locals_[j]
+        lj = locals_[j * F:(j + 1) * F]
         if n == 3:
-            _euler3(lj, rot_axes[j, 0], rot_axes[j, 1], rot_axes[j, 2], angles, work, sa, sb, t1, t2)
+            _euler3(lj, rot_axes[j, 0], rot_axes[j, 1], rot_axes[j, 2], angles, work, sa, sb, t1, t2, m)
         elif n == 2:
-            _euler2(lj, rot_axes[j, 0], rot_axes[j, 1], angles, work, sa, sb, t1, t2)
+            _euler2(lj, rot_axes[j, 0], rot_axes[j, 1], angles, work, sa, sb, t1, t2, m)
         else:
-            _euler1(lj, rot_axes[j, 0], angles)
+            _euler1(lj, rot_axes[j, 0], angles, m)
         for i in range(n):
             col = cs + rot_k[j, i]
             for f in range(F):
@@ -599,7 +630,7 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
 
 # ----------------------------------------------------------------------------- rounding, FK, distances
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def round_as_written(values, fixed, digits):
     """In place, what the AMC text of values reads back as: 'f' np.round(v, digits); 'g' `digits` significant digits."""
     F, C = values.shape
@@ -623,7 +654,7 @@ def round_as_written(values, fixed, digits):
                 values[f, c] = np.rint(v * scale) / scale
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _rotate_rows(frame, ax, angle):
     """frame := Rot(ax, angle) @ frame: rows b, c of a bone frame turned about axis ax."""
     co = math.cos(angle)
@@ -637,7 +668,7 @@ def _rotate_rows(frame, ax, angle):
         frame[c, col] = co * rc - si * rb
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fk_frame(values, f, joints, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
               to_rad, cm_per_unit, W, pos):
     """kinematics.forward for one frame: bone frames W (J, 3, 3) and positions (J, 3) of `joints`,
@@ -668,7 +699,7 @@ def _fk_frame(values, f, joints, parents, link, vct, axis0, col_start, nchan, ch
                                              + vct[j, 2] * W[j, 2, col])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def plant_feet(values, frames, feet, above, chain, dofs, weights, anchors, damping, rounds,
                parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit):
     """In place, in each of `frames` (n,): the `dofs` (d,) rotation columns of `values` moved so
@@ -732,7 +763,7 @@ def plant_feet(values, frames, feet, above, chain, dofs, weights, anchors, dampi
             values[f, dofs[c]] = row[0, dofs[c]]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _gauss_newton(row, W, pos, targets, active, start, feet, chain, dofs, dof_of, moves, damping, rounds,
                   parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit, work):
     """`rounds` rounds of damped Gauss-Newton, in radians, on |target - position|^2 over the
@@ -790,7 +821,7 @@ def _gauss_newton(row, W, pos, targets, active, start, feet, chain, dofs, dof_of
                   cm_per_unit, W, pos)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _solve_spd(a, b):
     """b := a^-1 b for a symmetric positive definite `a` (Cholesky, in place; `a` is overwritten).
     A matrix that is not (numerically), from a hostile skeleton, gives NaN, never an exception:
@@ -814,7 +845,7 @@ def _solve_spd(a, b):
         b[i] = total / a[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fk_positions(values, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad, cm_per_unit):
     """kinematics.forward(...).positions: (F, J, 3) cm."""
     F = values.shape[0]
@@ -828,7 +859,7 @@ def fk_positions(values, parents, link, vct, axis0, col_start, nchan, chan_kind,
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def joint_distance_stats(original, decoded):
     """(mean, max) of metrics.joint_distances(original, decoded) (mean as np.mean: pairwise sum)."""
     F, J, _ = original.shape
@@ -846,7 +877,7 @@ def joint_distance_stats(original, decoded):
     return np_sum(d) / (F * J), mx
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fk_joint_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                        to_rad, cm_per_unit):
     """metrics.joint_distances of fk_positions(values) and `original`: (F, J) cm."""
@@ -867,7 +898,7 @@ def fk_joint_distances(values, original, parents, link, vct, axis0, col_start, n
     return d
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fk_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                  to_rad, cm_per_unit):
     """(mean, max) of fk_joint_distances (mean as np.mean: pairwise sum)."""
@@ -880,7 +911,7 @@ def fk_distances(values, original, parents, link, vct, axis0, col_start, nchan, 
     return np_sum(flat) / flat.size, mx
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def twist_reference(values, ref_joints, ref_cols, ref_a0, ref_a1, to_rad):
     """positions.true_twists: (F, NR, 3, 3) euler_matrix of the 2-dof solved bones' original angles."""
     F = values.shape[0]

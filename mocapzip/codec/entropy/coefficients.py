@@ -288,7 +288,7 @@ def _int64_matrix(matrix) -> np.ndarray:
 # would overflow int64 when summed).
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _bit_length(value):
     length = 0
     while value:
@@ -297,7 +297,7 @@ def _bit_length(value):
     return length
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _neighbour_magnitudes(magnitudes, ends, column):
     """The rows of `magnitudes` for `column` and the two columns before it; the first cleared
     of what column - 3 left there (`ends`: the ends of the last three columns)."""
@@ -306,7 +306,7 @@ def _neighbour_magnitudes(magnitudes, ends, column):
     return current, magnitudes[(column + 2) % 3], magnitudes[(column + 1) % 3]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _context(current, previous, before, row):
     """Bit length of the weighted magnitude of the already-coded neighbours, capped.
 
@@ -321,7 +321,7 @@ def _context(current, previous, before, row):
     return min(_bit_length(near), _NEIGHBOUR_CONTEXTS - 1)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _encode_matrix(state, out, matrix, models):
     """Code `matrix` (int64, rows x columns); returns the encoder's buffer, grown if it had to be."""
     zero, length_models, below_leading, end_length, end_below = models
@@ -359,7 +359,7 @@ def _encode_matrix(state, out, matrix, models):
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _decode_matrix(state, data, matrix, models):
     """Fill the zero `matrix` (rows x columns); returns (-1, 0), or (column, end) for the first
     column whose end lies past the last row.  Returns early when the stream is exhausted."""
@@ -391,7 +391,7 @@ def _decode_matrix(state, data, matrix, models):
     return -1, 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _encode_end(state, out, end_length, end_below, end):
     """A column's end: its bit length through a binary tree, then the bits below the leading one."""
     length = _bit_length(end)
@@ -403,7 +403,7 @@ def _encode_end(state, out, end_length, end_below, end):
     _encode_below_leading(state, out, end_below, end, length)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _decode_end(state, data, end_length, end_below):
     node = 1
     for _ in range(_END_BITS):
@@ -412,7 +412,7 @@ def _decode_end(state, data, end_length, end_below):
     return _decode_below_leading(state, data, end_below, length) if length else 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _encode_below_leading(state, out, models, value, length):
     """The bits of `value` (bit length `length`) below its leading one: the first modelled
     per length (it is skewed for the decaying magnitudes coded here), the rest direct."""
@@ -421,7 +421,7 @@ def _encode_below_leading(state, out, models, value, length):
         encode_direct(state, out, value, length - 2)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _decode_below_leading(state, data, models, length):
     """The value of bit length `length` >= 1 whose lower bits `_encode_below_leading` wrote."""
     if length < 2:

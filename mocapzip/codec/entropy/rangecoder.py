@@ -66,7 +66,7 @@ def new_models(count: int) -> np.ndarray:
 # --------------------------------------------------------------------------- encoding
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def reserve(state, out, decisions):
     """`out`, or a larger copy of it, with room for all that `decisions` more decisions can write
     (the held-back bytes plus `_MOST_BYTES_PER_DECISION` each).  Callers reserve before coding."""
@@ -78,7 +78,7 @@ def reserve(state, out, decisions):
     return grown
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def encode_bit(state, out, models, index, bit):
     p = models[index]
     bound = (state[_RANGE] >> _PROB_BITS) * p
@@ -94,7 +94,7 @@ def encode_bit(state, out, models, index, bit):
         _shift_low(state, out)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def encode_direct(state, out, value, n_bits):
     """The low `n_bits` of `value`, most significant first, at one bit each."""
     for shift in range(n_bits - 1, -1, -1):
@@ -106,7 +106,7 @@ def encode_direct(state, out, value, n_bits):
             _shift_low(state, out)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _shift_low(state, out):
     low = state[_LOW]
     if low < 0xFF000000 or low > _MASK32:
@@ -122,7 +122,7 @@ def _shift_low(state, out):
     state[_LOW] = (low & 0x00FFFFFF) << 8
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _finish_encoding(state, out):
     """Flush the encoder; returns the buffer (maybe grown), whose bytes 1..state[_SIZE] are the stream."""
     out = reserve(state, out, 5)  # five decisions' room: more than five flushed bytes need
@@ -159,7 +159,7 @@ class Encoder:
 # --------------------------------------------------------------------------- decoding
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _normalise(state, data):
     while state[_DECODER_RANGE] < _TOP:
         state[_DECODER_RANGE] <<= 8
@@ -174,7 +174,7 @@ def _normalise(state, data):
         state[_CODE] = min((state[_CODE] << 8) | byte, state[_DECODER_RANGE])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def decode_bit(state, data, models, index):
     p = models[index]
     bound = (state[_DECODER_RANGE] >> _PROB_BITS) * p
@@ -191,7 +191,7 @@ def decode_bit(state, data, models, index):
     return bit
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def decode_direct(state, data, n_bits):
     value = 0
     for _ in range(n_bits):
@@ -205,7 +205,7 @@ def decode_direct(state, data, n_bits):
     return value
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def exhausted(state):
     """Whether the decoder needed a byte past the end of its stream (what it decoded since is void)."""
     return state[_EXHAUSTED] != 0
