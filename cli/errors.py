@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 import signal
 import sys
 import threading
@@ -19,6 +20,15 @@ def _fail(message: str) -> None:
     """One line, whatever the message holds: a name from a file may carry line breaks."""
     one_line = message.encode("unicode_escape", "backslashreplace").decode("ascii") if not message.isprintable() else message
     click.echo(f"mcz: error: {one_line}", err=True)
+    sys.exit(1)
+
+
+def _stdout_gone() -> None:
+    """Stdout's reader has gone (`mcz info | head`): stop quietly, as cat does, with exit code 1.
+    Stdout then points at /dev/null, so that Python's own flush at exit does not fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
     sys.exit(1)
 
 
@@ -41,7 +51,13 @@ def reports_errors(command):
             with warnings.catch_warnings():
                 warnings.simplefilter("always")
                 warnings.showwarning = lambda message, *a, **k: click.echo(f"mcz: warning: {message}", err=True)
-                return command(*args, **kwargs)
+                result = command(*args, **kwargs)
+                sys.stdout.flush()  # a reader gone (`| head`) is found here, not in Python's flush at exit
+                return result
+        except BrokenPipeError as exc:
+            if exc.filename is not None:  # a file of the command's, not stdout
+                _fail(f"{exc.filename}: {exc.strerror}")
+            _stdout_gone()
         except MocapFormatError as exc:
             _fail(str(exc))
         except FileExistsError as exc:

@@ -197,3 +197,15 @@ def test_settings_an_archive_cannot_hold_are_refused_before_any_input_is_read(tm
     with pytest.raises((ValueError, KeyError), match=message):
         compress([tmp_path / "no such folder"], tmp_path / "x.mcz", replace(Settings(), **change))
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["info", "info --json", "inspect"])
+def test_a_reader_gone_from_stdout_ends_the_command_quietly(shared_data, command):
+    """`mcz info db.mcz | head`: the reader of stdout has gone before mcz writes. mcz stops as cat
+    would, with exit code 1 and nothing on stderr (not an error line, not Python's broken-pipe noise)."""
+    source = shared_data / "cmu" / "07" if command == "inspect" else GOLDEN_LOSSY
+    proc = subprocess.Popen([Path(sys.executable).with_name("mcz"), *command.split(), source], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # no reader left: the first write fails with EPIPE, whenever it comes
+    _, stderr = proc.communicate(timeout=120)
+    assert (proc.returncode, stderr) == (1, b"")
