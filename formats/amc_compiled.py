@@ -1,4 +1,4 @@
-"""The per-value loops of AMC reading and writing (and BVH reading: `scan_lines`), compiled with numba.
+"""The per-value loops of AMC reading and writing (and BVH's: `scan_lines`, `format_rows`), compiled with numba.
 
 Why: reading and writing spend their time on each of the file's numbers (a CMU file holds a
 million in 9 MB), and NumPy's many passes or Python's `%` operator capped them at about 55 MB/s
@@ -13,7 +13,8 @@ float()'s result); the caller converts the rest (NaN here) with float(). Which w
 is the rule the former NumPy parser had (at most 22 bytes, the bytes read as digits below
 2**53, the exponent within +-22), so a damaged file is reported at the same word as before.
 
-Writing: `format_frames` writes numbers as Python's `%d`, `%.<p>g` and `%.<p>f` do. Those
+Writing: `format_frames` (AMC) and `format_rows` (BVH frame lines) write numbers as Python's
+`%d`, `%.<p>g` and `%.<p>f` do. Those
 round the exact binary value half to even; here the value is scaled by one correctly rounded
 operation and rounded from there, which decides every rounding but where the scaled value is
 exactly a half, or outside the ranges where that holds (more than 15 digits, scales beyond
@@ -560,4 +561,34 @@ def format_frames(values, frames, names, name_ends, counts, separator, newline, 
                 else:
                     pos = end
             pos = _put(out, pos, newline, 0, newline.size)
+    return out[:pos], hard[:n_hard]
+
+
+@numba.njit(cache=True, nogil=True)
+def format_rows(values, separator, ending, fixed, digits):
+    """BVH frame lines: each row of `values` as '%.<digits>f' (`fixed`) or '%.<digits>g' numbers
+    joined by `separator`, then `ending`.
+
+    Returns (text, hard) as `format_frames` does; here item is row * columns + column.
+    """
+    n_rows, n_columns = values.shape
+    most = ending.size + n_columns * (40 + digits + separator.size)  # what one row can take
+    out = np.empty(max(n_rows * (ending.size + n_columns * (12 + separator.size)), most), np.uint8)
+    hard = np.empty((16, 2), np.int64)
+    n_hard = 0
+    pos = 0
+    for row in range(n_rows):
+        if pos + most > out.size:
+            out = _grown(out)
+        for column in range(n_columns):
+            if column:
+                pos = _put(out, pos, separator, 0, separator.size)
+            x = values[row, column]
+            end = _put_fixed(out, pos, x, digits) if fixed else _put_general(out, pos, x, digits, 2)
+            if end < 0:
+                hard = _note(hard, n_hard, pos, row * n_columns + column)
+                n_hard += 1
+            else:
+                pos = end
+        pos = _put(out, pos, ending, 0, ending.size)
     return out[:pos], hard[:n_hard]

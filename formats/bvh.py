@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapzip.formats.amc_compiled import scan_lines
+from mocapzip.formats.amc_compiled import format_rows, scan_lines
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, check_text, detect_encoding, number,
                                    open_regular_file, read_regular_file)
@@ -64,22 +64,35 @@ class BvhStyle:
     after: str = ""  # blank lines (or blanks) after the last frame's line end
 
     def format(self, values: np.ndarray) -> str:
-        """The frame lines of `values` (frames, channels), in this style."""
-        if self.number == "repr":
-            texts = [repr(v) for v in values.ravel().tolist()]
-        else:
-            spec = f".{int(self.number[1:])}{self.number[0]}"
-            texts = [format(v, spec) for v in values.ravel().tolist()]
+        """The frame lines of `values` (frames, channels), in this style: "g" and "f" numbers in
+        compiled code (`amc_compiled.format_rows`, the numbers it leaves and "repr" in Python)."""
         width = values.shape[1] if values.ndim == 2 else 0
         ending = self.trailing + self.line_end
         if width == 0:
-            lines = [""] * values.shape[0]
+            text = ending * values.shape[0]
+        elif self.number == "repr":
+            texts = [repr(v) for v in values.ravel().tolist()]
+            text = "".join(self.separator.join(texts[i : i + width]) + ending for i in range(0, len(texts), width))
         else:
-            lines = [self.separator.join(texts[i : i + width]) for i in range(0, len(texts), width)]
-        text = ending.join(lines) + ending if lines else ""
-        if lines and not self.final_line_end:
+            text = self._compiled_rows(np.ascontiguousarray(values, dtype=np.float64), ending)
+        if values.shape[0] and not self.final_line_end:
             text = text[: len(text) - len(self.line_end)]
         return text + self.after
+
+    def _compiled_rows(self, values: np.ndarray, ending: str) -> str:
+        spec = f".{int(self.number[1:])}{self.number[0]}"
+        text, hard = format_rows(values, np.frombuffer(self.separator.encode(), np.uint8),
+                                 np.frombuffer(ending.encode(), np.uint8), self.number[0] == "f",
+                                 int(self.number[1:]))
+        text = text.tobytes()
+        if hard.size:  # the numbers format_rows leaves, by Python, at their offsets
+            flat, pieces, done = values.ravel(), [], 0
+            for at, item in hard.tolist():
+                pieces += [text[done:at], format(float(flat[item]), spec).encode()]
+                done = at
+            pieces.append(text[done:])
+            text = b"".join(pieces)
+        return text.decode("ascii")
 
 
 @dataclass

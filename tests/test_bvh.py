@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mocapzip.formats.bvh import (MAX_HIERARCHY_CHARS, Bvh, BvhStyle, format_bvh, parse_bvh, read_bvh,
+from mocapzip.formats.bvh import (MAX_HIERARCHY_CHARS, NUMBER_STYLES, Bvh, BvhStyle, format_bvh, parse_bvh, read_bvh,
                                   read_hierarchy)
 from mocapzip.formats.errors import MocapFormatError
 
@@ -134,3 +134,24 @@ def test_the_hierarchy_of_a_file_is_read_no_further_than_a_hierarchy_may_reach(s
     with pytest.raises(MocapFormatError, match=r"endless\.bvh: no MOTION line in its first [0-9,]+ bytes"):
         read_hierarchy(path)
 
+
+
+AWKWARD = np.array([[0.0, -0.0, 0.5, 2.5, -1.5, 1e22, 1e23],  # signed zeros, halves, past the exact powers of ten
+                    [np.inf, -np.inf, np.nan, 5e-324, 1.7976931348623157e308, 123456.5, 9.9999995],
+                    [0.1, -33.333333333333336, 1e-5, 999999.5, 1e15 + 0.3, 2.0**52 + 1, -7.0]])
+
+
+@pytest.mark.parametrize("number", NUMBER_STYLES)
+def test_frame_lines_are_pythons_text_in_every_number_style(number):
+    """`BvhStyle.format` writes "g" and "f" numbers in compiled code (`format_rows`), the hard ones
+    in Python: its text is Python's `format` of every value, whatever the value."""
+    values = np.concatenate([AWKWARD, np.random.default_rng(5).normal(0, 60, (50, 7)).round(4)])
+    spec = None if number == "repr" else f".{number[1:]}{number[0]}"
+    for style in (BvhStyle(number, " ", "", "\n"), BvhStyle(number, "\t", " ", "\r\n", False, "\n\n")):
+        ending = style.trailing + style.line_end
+        lines = [style.separator.join(repr(v) if spec is None else format(v, spec) for v in row) + ending
+                 for row in values.tolist()]
+        expected = "".join(lines)
+        expected = expected if style.final_line_end else expected[: -len(style.line_end)]
+        assert style.format(values) == expected + style.after
+        assert style.format(values[:0]) == style.after
