@@ -342,7 +342,8 @@ def _parse_split(text):
               help="Folder for the ASF/AMC and BVH files (not stdout: `-o -` is refused).")
 @click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
 @click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
-@jobs_option("decoding the clips (the files are written in the archive's order)", "Threads")
+@jobs_option("decoding the clips (the files are written in the archive's order)",
+             "Threads (worker processes for a lossless archive)")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
 def decompress(archive_path, output, patterns, force, jobs, quiet):
@@ -450,7 +451,7 @@ def _clip_table(clips: list[dict], names: list[str]) -> None:
 
 @main.command("test")
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
-@jobs_option("decoding the clips", "Threads")
+@jobs_option("decoding the clips", "Threads (worker processes for a lossless archive)")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
 def test_archive(archive_path, jobs, quiet):

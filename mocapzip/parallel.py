@@ -15,9 +15,9 @@ each item raised, given in the parent at the item's turn. What it adds: workers 
 outlive the parent, and a Ctrl-C or a `kill` of the parent's process group is the parent's
 to handle (one message, its clean-up), not every worker's.
 
-Decoding runs on threads instead (`thread_imap`): its time is spent in compiled code that
+Lossy decoding runs on threads instead (`thread_imap`): its time is spent in compiled code that
 releases the GIL (numba kernels with nogil, h5py, numpy, scipy's DCT), and its results, whole
-AMC files, would otherwise be pickled from worker to parent.
+files, would otherwise be pickled from worker to parent.
 
 mcz's work runs on one BLAS thread per process (`one_blas_thread`): its matrices are small,
 and it gets its parallelism from worker processes (or threads), one per core.

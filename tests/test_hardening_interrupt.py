@@ -208,14 +208,19 @@ def test_ctrl_c_in_a_terminal_stops_every_worker_in_one_line(shared_data, tmp_pa
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="finds the workers through /proc (Linux)")
-def test_a_worker_killed_mid_run_ends_the_run_in_one_line(shared_data, tmp_path):
-    """A worker of compress -j 2 killed (as the OOM killer would) while it holds its first clip: the
-    parent says so in one line, exits 1, and leaves no file behind."""
+@pytest.mark.parametrize("command", ["compress", "decompress"])
+def test_a_worker_killed_mid_run_ends_the_run_in_one_line(shared_data, tmp_path, command):
+    """A worker of compress -j 2, or of decompress -j 2 of a lossless archive, killed (as the OOM
+    killer would) while it holds its first clip: the parent says so in one line, exits 1, and leaves
+    no file behind."""
     out, marker = tmp_path / "out", tmp_path / "marker"
     out.mkdir()
     env = {**os.environ, "MCZ_TEST_MARKER": str(marker), "MCZ_TEST_HOLD_IN_WORKER": "1"}
-    proc = start([sys.executable, "-c", CODING_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz",
-                  "-j", "2"], env)
+    if command == "compress":
+        args = [CODING_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz"]
+    else:
+        args = [DECODING_CHILD, "decompress", GOLDEN_LOSSLESS, "-o", out]
+    proc = start([sys.executable, "-c", *args, "-j", "2"], env)
     wait_for(marker, proc)
     workers = [int(entry) for entry in os.listdir("/proc") if entry.isdigit() and _parent_of(int(entry)) == proc.pid]
     assert len(workers) == 2, workers
@@ -225,7 +230,7 @@ def test_a_worker_killed_mid_run_ends_the_run_in_one_line(shared_data, tmp_path)
     assert proc.returncode == 1, (proc.returncode, stderr)
     assert stderr.splitlines() == ["mcz: error: a worker process ended abruptly (killed, or out of memory); "
                                    "no partial file was left behind"], stderr
-    assert_only_whole_files(out, tmp_path, "compress")
+    assert_only_whole_files(out, tmp_path, command)
 
 
 def assert_only_whole_files(out: Path, tmp_path: Path, command: str) -> None:

@@ -189,20 +189,22 @@ main(prog_name="mcz")
 """
 
 
-def test_a_pool_that_cannot_start_all_its_workers_ends_the_run(tmp_path, shared_data):
-    """One worker started, the second refused: one line, exit 1, no archive, and no wait for the
-    first at exit."""
-    out = tmp_path / "07.mcz"
-    result = subprocess.run([sys.executable, "-c", "FORKS_ALLOWED = 1\n" + FORKS_REFUSED, "compress",
-                             shared_data / "cmu" / "07", "-o", out, "-j", "2", "-q"],
-                            capture_output=True, text=True, timeout=DEADLINE)
+@pytest.mark.parametrize("command", ["compress", "decompress"])
+def test_a_pool_that_cannot_start_all_its_workers_ends_the_run(tmp_path, shared_data, command):
+    """One worker started, the second refused (compress; decompress of a lossless archive): one line,
+    exit 1, no archive or file, and no wait for the first at exit."""
+    out = tmp_path / "out"
+    source = shared_data / "cmu" / "07" if command == "compress" else GOLDEN / "lossless_v4.mcz"
+    result = subprocess.run([sys.executable, "-c", "FORKS_ALLOWED = 1\n" + FORKS_REFUSED, command, source,
+                             "-o", out, "-j", "2", "-q"], capture_output=True, text=True, timeout=DEADLINE)
     assert result.returncode == 1
     assert result.stderr.splitlines()[-1] == "mcz: error: [Errno 11] Resource temporarily unavailable"
     assert list(tmp_path.iterdir()) == []
 
 
-def test_decompress_and_test_with_two_jobs_need_no_new_process(tmp_path):
-    """They decode on threads: under a limit that refuses every fork, -j 2 writes what -j 1 writes."""
+def test_decompress_and_test_of_a_lossy_archive_need_no_new_process(tmp_path):
+    """Lossy clips decode on threads: under a limit that refuses every fork, -j 2 writes what -j 1
+    writes. (A lossless archive's clips decode in worker processes: `Archive.made_files`.)"""
     archive = GOLDEN / "lossy_v4.mcz"
     out = tmp_path / "out"
     for command in (["decompress", archive, "-o", out, "-j", "2", "-q"], ["test", archive, "-j", "2", "-q"]):

@@ -41,7 +41,7 @@ from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.motion.timewarp import path_of_moves
-from mocapzip.parallel import one_blas_thread, thread_imap
+from mocapzip.parallel import imap, one_blas_thread, thread_imap
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
@@ -385,25 +385,43 @@ class Archive:
                 pass
 
     def made_files(self, entries: list[tuple[str, int]], jobs: int = 1, keep: bool = True):
-        """`file_bytes` of each (kind, index) of `entries`, in order, made by `jobs` threads
-        (`parallel.thread_imap`; None each if not `keep`: only checked). A few files ahead of
-        the one yielded are made at once (FILES_AHEAD per job), never all of them; the first
-        that fails raises at its turn. Close the generator if you may stop early."""
-        # Threads, not forked workers: decoding runs in numba kernels that release the GIL, and
-        # a worker process had to pickle each file back (the shared CMU set at 1 cm, -j 2: 0.89x
-        # the time). The caches below (`_model`, `_basis`, ...) fill on first use; threads that
+        """`file_bytes` of each (kind, index) of `entries`, in order, made by `jobs` threads, or
+        worker processes for a lossless archive (None each if not `keep`: only checked). A few
+        files ahead of the one yielded are made at once (FILES_AHEAD per job), never all of
+        them; the first that fails raises at its turn. Close the generator if you may stop early."""
+        if self.settings.lossless:
+            yield from self._made_in_processes(entries, jobs, keep)
+            return
+        # Lossy clips decode in numba kernels that release the GIL: threads, which need no file
+        # pickled back from a worker (the shared CMU set at 1 cm, -j 2: 0.89x the time of worker
+        # processes). The caches below (`_model`, `_basis`, ...) fill on first use; threads that
         # race to fill one entry build the same value, and either is kept.
         def made(entry: tuple[str, int]) -> bytes | None:
             data = self.file_bytes(*entry)
             return data if keep else None
 
-        return thread_imap(made, entries, jobs, FILES_AHEAD * jobs)
+        yield from thread_imap(made, entries, jobs, FILES_AHEAD * jobs)
+
+    def _made_in_processes(self, entries: list[tuple[str, int]], jobs: int, keep: bool):
+        """`made_files` in forked workers (`parallel.imap`): lossless clips decode their rANS
+        streams in Python, which holds the GIL (threads took 1.6x the time of processes on the
+        shared CMU set). The workers read this archive's open file: opening it again in each
+        measured no faster (HDF5 reads with pread; every stream read is checked against its CRC32)."""
+        _SHARED["archive"] = self
+        clips = [entry for entry in entries if entry[0] == "amc"]
+        if jobs > 1 and len(clips) > 1:  # decode one clip here first: numba loads its kernels once, before the
+            self.file_bytes(*clips[0])  # fork, not once in each worker (about a second each)
+        try:
+            yield from imap(_made_file if keep else _checked_file, entries, jobs, FILES_AHEAD * jobs)
+        finally:
+            _SHARED.clear()
 
 
 @one_blas_thread
 def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: int = 1) -> dict:
     """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`,
-    made by `jobs` threads and written here one at a time, in the archive's order.
+    made by `jobs` threads (worker processes for a lossless archive: `Archive.made_files`) and
+    written here one at a time, in the archive's order.
 
     Every path comes from the archive's meta, checked on opening to be relative, free of '.'
     and '..' and unique (`meta.validate`); each file is also refused if its folder resolves
@@ -438,7 +456,17 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
 
 
-FILES_AHEAD = 2  # files made ahead of the one being written, per thread: enough to keep every thread busy
+FILES_AHEAD = 2  # files made ahead of the one being written, per job: enough to keep every thread or worker busy
+
+_SHARED: dict = {}  # the archive the forked workers decode from (`Archive._made_in_processes`)
+
+
+def _made_file(entry: tuple[str, int]) -> bytes:
+    return _SHARED["archive"].file_bytes(*entry)
+
+
+def _checked_file(entry: tuple[str, int]) -> None:
+    _SHARED["archive"].file_bytes(*entry)
 
 
 def info(archive_path) -> dict:
