@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import os
+import select
 import signal
 import sys
 import threading
@@ -23,9 +24,24 @@ def _fail(message: str) -> None:
     sys.exit(1)
 
 
-def _stdout_gone() -> None:
-    """Stdout's reader has gone (`mcz info | head`): stop quietly, as cat does, with exit code 1.
-    Stdout then points at /dev/null, so that Python's own flush at exit does not fail again."""
+def _stdout_reader_gone() -> bool:
+    """Whether stdout is a pipe whose reader has gone (`mcz info | head`): poll reports an error
+    (or a hang-up) on it. A broken pipe elsewhere (a child process's stdin, a FIFO given as a
+    file) is an error like any other."""
+    try:
+        descriptor = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # no stdout (`>&-`), or not a file (click's test runner)
+        return False
+    if not hasattr(select, "poll"):
+        return False
+    poller = select.poll()
+    poller.register(descriptor, select.POLLOUT)
+    return any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
+
+
+def _stop_quietly() -> None:
+    """Stdout's reader has gone: stop as cat does, with exit code 1 and no message. Stdout then
+    points at /dev/null, so that Python's own flush at exit does not fail again."""
     devnull = os.open(os.devnull, os.O_WRONLY)
     os.dup2(devnull, sys.stdout.fileno())
     os.close(devnull)
@@ -52,17 +68,16 @@ def reports_errors(command):
                 warnings.simplefilter("always")
                 warnings.showwarning = lambda message, *a, **k: click.echo(f"mcz: warning: {message}", err=True)
                 result = command(*args, **kwargs)
-                sys.stdout.flush()  # a reader gone (`| head`) is found here, not in Python's flush at exit
+                if sys.stdout is not None:  # None when run with stdout closed (`>&-`)
+                    sys.stdout.flush()  # a reader gone (`| head`) is found here, not in Python's flush at exit
                 return result
-        except BrokenPipeError as exc:
-            if exc.filename is not None:  # a file of the command's, not stdout
-                _fail(f"{exc.filename}: {exc.strerror}")
-            _stdout_gone()
         except MocapFormatError as exc:
             _fail(str(exc))
         except FileExistsError as exc:
             _fail(f"{exc.filename or exc}: already exists (use -f/--force to overwrite)")
         except OSError as exc:
+            if isinstance(exc, BrokenPipeError) and _stdout_reader_gone():
+                _stop_quietly()
             _fail(f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc))
         except ClusterError as exc:
             _fail(f"{exc}; no partial file was left behind")

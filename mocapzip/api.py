@@ -294,7 +294,8 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
 def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Iterable[str] = (), *,
                force: bool = False, jobs: int = 1) -> dict:
     """Write the ASF and AMC (and BVH) files of the archive's clips under the folder `output`, as
-    `mcz decompress` does (one worker process unless `jobs` says more): all clips, or those
+    `mcz decompress` does (on one thread unless `jobs` says more; worker processes for a lossless
+    archive): all clips, or those
     whose path matches one of the `clips` patterns (shell-style, e.g. "07/*"). Existing files
     are replaced only with `force`."""
     return reader.decompress(archive, output, tuple(clips), force=force, jobs=jobs)

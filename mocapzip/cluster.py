@@ -10,8 +10,9 @@ so the archive is byte-identical to `-j N`'s.
 
 A task's state is what a forked worker would have inherited: its function's module's `_SHARED`,
 and the module dicts named in `parallel.SHIPPED` (the encoder's clip loader). It is pickled once
-per map, sent as a task's argument (`Cluster._state`), fetched by each worker, and installed in a worker before its first task of the map,
-with the client's working folder as the worker's; a worker process runs one task at a time. Clips
+per map, sent as a task's argument (`Cluster._state`), fetched by each worker and installed there
+before its first task of the map, with the client's working folder as the worker's; a worker
+process runs one task at a time. Clips
 are not in it (except -c auto's, which compares every clip's poses): workers read them again from
 the paths the client found, so the data must be on storage the workers share with the client, at
 the same paths. A `ClipReader` pickles without the clips it keeps (`ClipReader.__getstate__`).
@@ -238,8 +239,11 @@ class Cluster:
         state_id = uuid.uuid4().hex[:12]
         self.state_ids.add(state_id)
         import dask  # here: Dask is an optional extra, and a Cluster exists only if it is installed
+        from dask.utils import parse_bytes
 
-        with dask.config.set({"distributed.admin.large-graph-warning-threshold": f"{len(blob) + (1 << 20)}B"}):
+        threshold = max(parse_bytes(dask.config.get("distributed.admin.large-graph-warning-threshold")),
+                        len(blob) + (1 << 20))  # the state is meant to travel in the graph: no warning for it
+        with dask.config.set({"distributed.admin.large-graph-warning-threshold": threshold}):
             return self.client.submit(_returned, blob, key=f"state-{state_id}", pure=False), state_id
 
     def _outcome(self, future):

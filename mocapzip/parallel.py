@@ -16,8 +16,8 @@ outlive the parent, and a Ctrl-C or a `kill` of the parent's process group is th
 to handle (one message, its clean-up), not every worker's.
 
 Lossy decoding runs on threads instead (`thread_imap`): its time is spent in compiled code that
-releases the GIL (numba kernels with nogil, h5py, numpy, scipy's DCT), and its results, whole
-files, would otherwise be pickled from worker to parent.
+releases the GIL (numba kernels with nogil, numpy, scipy's DCT; h5py reads one at a time, but
+they are small), and its results, whole files, would otherwise be pickled from worker to parent.
 
 mcz's work runs on one BLAS thread per process (`one_blas_thread`): its matrices are small,
 and it gets its parallelism from worker processes (or threads), one per core.

@@ -135,7 +135,6 @@ def test_the_hierarchy_of_a_file_is_read_no_further_than_a_hierarchy_may_reach(s
         read_hierarchy(path)
 
 
-
 AWKWARD = np.array([[0.0, -0.0, 0.5, 2.5, -1.5, 1e22, 1e23],  # signed zeros, halves, past the exact powers of ten
                     [np.inf, -np.inf, np.nan, 5e-324, 1.7976931348623157e308, 123456.5, 9.9999995],
                     [0.1, -33.333333333333336, 1e-5, 999999.5, 1e15 + 0.3, 2.0**52 + 1, -7.0]])

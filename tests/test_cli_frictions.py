@@ -209,3 +209,39 @@ def test_a_reader_gone_from_stdout_ends_the_command_quietly(shared_data, command
     proc.stdout.close()  # no reader left: the first write fails with EPIPE, whenever it comes
     _, stderr = proc.communicate(timeout=120)
     assert (proc.returncode, stderr) == (1, b"")
+
+
+# A command that writes to a pipe of its own whose reader has gone, run with stdout a live pipe.
+OTHER_PIPE_BROKEN = r"""
+import os
+import click
+from mocapzip.cli.errors import reports_errors
+
+@click.command()
+@reports_errors
+def command():
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    os.write(write_end, b"x")
+
+command()
+"""
+
+
+def test_a_broken_pipe_that_is_not_stdout_is_an_error_line():
+    """Only stdout's reader going away ends a command quietly; a pipe of the command's own that
+    breaks (a child's stdin, a FIFO given as a file) is a one-line error like any other."""
+    result = subprocess.run([sys.executable, "-c", OTHER_PIPE_BROKEN], capture_output=True, text=True, timeout=120)
+    assert (result.returncode, result.stdout) == (1, "")
+    assert result.stderr == "mcz: error: [Errno 32] Broken pipe\n"
+
+
+def test_a_closed_stdout_is_not_an_error(tmp_path):
+    """Run with stdout closed (`mcz decompress ... >&-`, as some schedulers start jobs): the files are
+    written and the command succeeds, with nothing on stderr."""
+    out = tmp_path / "out"
+    result = subprocess.run([Path(sys.executable).with_name("mcz"), "decompress", GOLDEN_LOSSY, "-o", out, "-q"],
+                            capture_output=False, stderr=subprocess.PIPE, text=True, timeout=120,
+                            preexec_fn=lambda: os.close(1))
+    assert (result.returncode, result.stderr) == (0, "")
+    assert len(list(out.iterdir())) >= 2

@@ -267,6 +267,7 @@ def test_ctrl_c_in_a_terminal_ends_a_dask_run_in_one_line(shared_data, tmp_path)
             time.sleep(0.02)
 
 
+@pytest.mark.slow  # about 10 s: the fast tier keeps the other cluster tests
 def test_a_worker_with_two_threads_writes_the_same_archive(shared_data, tmp_path):
     """`dask worker` runs a task per core on threads by default: both classes (02, and 07 and 09
     pooled) would start at once in one process, where a task's state and the encoder's live in
@@ -291,6 +292,7 @@ def test_a_local_cluster_leaves_the_blas_variables_as_they_were(monkeypatch):
     assert not [name for name in BLAS_THREAD_VARIABLES if name in os.environ]
 
 
+@pytest.mark.slow  # about 10 s: the fast tier keeps the other cluster tests
 def test_two_runs_on_one_scheduler_at_once(shared_data, tmp_path, two_workers):
     """Two `mcz compress` on one scheduler at the same time: each worker runs one task at a time and
     installs each task's own state, and a run that ends clears only its own: both archives are -j 2's."""

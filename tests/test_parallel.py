@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from hostile_archives import Case, _stream, build
+from hostile_archives import BASES, Case, _stream, build
 from mocapzip.archive import Archive, decompress
 from mocapzip.archive.writer import _serialise_clips
 from mocapzip.codec.clip_stream import CodedClip
@@ -198,7 +198,7 @@ def test_a_pool_that_cannot_start_all_its_workers_ends_the_run(tmp_path, shared_
     result = subprocess.run([sys.executable, "-c", "FORKS_ALLOWED = 1\n" + FORKS_REFUSED, command, source,
                              "-o", out, "-j", "2", "-q"], capture_output=True, text=True, timeout=DEADLINE)
     assert result.returncode == 1
-    assert result.stderr.splitlines()[-1] == "mcz: error: [Errno 11] Resource temporarily unavailable"
+    assert result.stderr == "mcz: error: [Errno 11] Resource temporarily unavailable\n"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -227,24 +227,47 @@ def test_two_jobs_decompress_the_files_one_job_does(tmp_path, golden):
     assert mcz("test", archive, "-j", "2").returncode == 0
 
 
-def test_a_clip_that_fails_to_decode_stops_two_jobs_as_it_stops_one(tmp_path):
-    """The second of four files cannot be decoded (its checksum is right: only decoding finds it):
-    with -j 2 as with -j 1, the same one-line error, the file before it written whole, no other
-    file and no temporary file; `mcz test` reports it alike."""
-    damaged = tmp_path / "damaged.mcz"
-    build(Case("second_clip_3_bytes", "lossless", _stream("clip/00001", b"abc"), "clip/00001"), damaged)
+def test_a_skeleton_that_warns_warns_once_whatever_the_jobs(tmp_path, shared_data):
+    """The stored ASF has a section mcz does not know, so reading it back warns. Decoding threads
+    share the archive's skeletons: the warning comes once, and -j 1, 2 and 4 give the same
+    messages and files."""
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    asf = (shared_data / "cmu" / "09" / "09.asf").read_text(encoding="latin-1")
+    (clips / "09.asf").write_text(asf.replace("\n:name", "\n:namespace TEST\n:name", 1), encoding="latin-1")
+    for name in ("09_02", "09_03", "09_08", "09_09"):
+        shutil.copyfile(shared_data / "cmu" / "09" / f"{name}.amc", clips / f"{name}.amc")
+    archive = tmp_path / "w.mcz"
+    assert mcz("compress", clips, "-o", archive, "-j", "1", "-q").returncode == 0
     outcomes = {}
-    for jobs in ("1", "2"):
+    for jobs in ("1", "2", "4"):
+        result = mcz("decompress", archive, "-o", tmp_path / f"out{jobs}", "-j", jobs, "-q")
+        outcomes[jobs] = (result.returncode, result.stderr, files_under(tmp_path / f"out{jobs}"))
+    assert outcomes["1"] == outcomes["2"] == outcomes["4"]
+    code, stderr, files = outcomes["1"]
+    assert code == 0 and len(files) == 5
+    assert stderr.count("mcz: warning:") == 1 and "namespace" in stderr, stderr
+
+
+@pytest.mark.parametrize("base", ["lossless", "lossy"])  # decoded by worker processes, by threads
+def test_a_clip_that_fails_to_decode_stops_two_jobs_as_it_stops_one(tmp_path, base):
+    """The second of four files cannot be decoded (its checksum is right: only decoding finds it):
+    with -j 2 and 4 as with -j 1, the same one-line error, the file before it written whole, no
+    other file and no temporary file; `mcz test` reports it alike."""
+    damaged = tmp_path / "damaged.mcz"
+    build(Case("second_clip_3_bytes", base, _stream("clip/00001", b"abc"), "clip/00001"), damaged)
+    outcomes = {}
+    for jobs in ("1", "2", "4"):
         out = tmp_path / f"out{jobs}"
         result = mcz("decompress", damaged, "-o", out, "-j", jobs)
         tested = mcz("test", damaged, "-j", jobs)
         outcomes[jobs] = (result.returncode, result.stderr, files_under(out), tested.returncode, tested.stderr)
-    assert outcomes["1"] == outcomes["2"]
+    assert outcomes["1"] == outcomes["2"] == outcomes["4"]
     code, stderr, written, test_code, test_stderr = outcomes["2"]
     assert code == test_code == 1
     assert stderr == test_stderr and len(stderr.splitlines()) == 1
     assert stderr.startswith(f"mcz: error: {damaged}: clip/00001 (64_01.amc): damaged")
-    decompress(GOLDEN / "lossless_v4.mcz", tmp_path / "whole", jobs=1)
+    decompress(BASES[base], tmp_path / "whole", jobs=1)
     assert written == {"09_01.amc": (tmp_path / "whole" / "09_01.amc").read_bytes()}  # the first file, whole
 
 

@@ -7,16 +7,21 @@ formats' decoders (`legacy`) and the checks on meta every reader runs (`meta`).
 
 from mocapzip.archive.reader import Archive, decompress, info
 from mocapzip.archive.settings import DEFAULT_ERROR_CM, Settings, SettingsError
+from mocapzip.defaults import DEFAULT_CACHE_MB
 
 __all__ = ["DEFAULT_CACHE_MB", "DEFAULT_ERROR_CM", "Archive", "Settings", "SettingsError", "compress", "decompress",
            "info"]
 
 
 def __getattr__(name: str):
-    """The encoder's names, loaded on first use: decompress, info and test do not need its modules
-    (37 ms of imports)."""
-    if name in ("DEFAULT_CACHE_MB", "compress"):
-        from mocapzip.archive import writer
+    """The encoder, loaded on first use: decompress, info and test do not need its modules (37 ms
+    of imports)."""
+    if name == "compress":
+        from mocapzip.archive.writer import compress
 
-        return getattr(writer, name)
+        return compress
     raise AttributeError(f"module 'mocapzip.archive' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), "compress"})

@@ -9,8 +9,11 @@ ones' differences by `legacy` alone. Every clip goes through one decode tail
 from __future__ import annotations
 
 import fnmatch
+import functools
 import os
+import threading
 from collections import defaultdict
+from collections.abc import Callable
 from contextlib import closing
 from pathlib import Path, PurePosixPath
 
@@ -48,6 +51,29 @@ from mocapzip.representations.weighted import DecodeTail, skeleton_params
 from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout
 
 
+def _built_once(build: Callable) -> Callable:
+    """An `Archive` method whose value for its arguments is built on first use and kept, its
+    ArchiveError too (raised again at each use): once per archive, whichever decode thread asks
+    first (`Archive.made_files`), so a skeleton's warnings are given once, as with one thread."""
+
+    @functools.wraps(build)
+    def once(self, *key):
+        key = (build.__name__, *key)
+        if key not in self._built:
+            with self._building:
+                if key not in self._built:
+                    try:
+                        self._built[key] = (build(self, *key[1:]), None)
+                    except ArchiveError as exc:
+                        self._built[key] = (None, exc)
+        value, failure = self._built[key]
+        if failure is not None:
+            raise failure
+        return value
+
+    return once
+
+
 class Archive:
     """An opened .mcz: metadata up front, clips decoded on demand (random access)."""
 
@@ -78,13 +104,8 @@ class Archive:
             raise
         self._decode_class = legacy.CLASS_DECODERS.get(version, ClassBasis.decode)
         self._decode_clip = legacy.CLIP_DECODERS.get(version, self._coded_clip)
-        self._priors: Priors | None = None
-        self._bases: dict[int, ClassBasis] = {}
-        self._tensors: dict[int, TensorModel] = {}
-        self._models: dict[int, SkeletonModel] = {}
-        self._bvh_skeletons: dict[int, BvhSkeleton] = {}
-        self._bvh_joints: dict[int, list] = {}
-        self._tails: dict[tuple[int, ChannelLayout], DecodeTail] = {}
+        self._built: dict[tuple, tuple] = {}  # (method, its arguments) -> (value, ArchiveError): `_built_once`
+        self._building = threading.RLock()
 
     def _json(self, name):
         try:
@@ -150,14 +171,16 @@ class Archive:
         """Where the clip streams' models start (coefficient coder "primed"), else None."""
         if self.settings.lossless or not self.stages["coefficient coder"].needs_priors:
             return None
-        if self._priors is None:
-            try:
-                self._priors = Priors.decode(decode_bytes(self._reader.read("priors")))
-            except KeyError:
-                raise ArchiveError("priors: stream missing", self.path) from None
-            except ValueError as exc:
-                raise ArchiveError(f"priors: damaged ({exc})", self.path) from exc
-        return self._priors
+        return self._priors_table()
+
+    @_built_once
+    def _priors_table(self) -> Priors:
+        try:
+            return Priors.decode(decode_bytes(self._reader.read("priors")))
+        except KeyError:
+            raise ArchiveError("priors: stream missing", self.path) from None
+        except ValueError as exc:
+            raise ArchiveError(f"priors: damaged ({exc})", self.path) from exc
 
     def decode(self, index: int) -> Motion:
         """The clip's motion as decoded (lossy: within the stored error of the original)."""
@@ -275,82 +298,76 @@ class Archive:
     def _prediction(self, row: dict, moves: bytes, width: int) -> np.ndarray:
         """A tensor class's prediction of the clip of `row` (`codec.tensor.prediction`), on
         the path its stored `moves` give, checked against the class's model before it is made."""
-        k = row["class"]
-        if k not in self._tensors:
-            name, levels = f"tensor/{k:04d}", self.meta["classes"][k]["levels"]
-            try:
-                model = TensorModel.decode(self._reader.read(name))
-                if model.factors[1].shape[0] != width or [f.shape[0] for f in model.factors[2:]] != list(map(len, levels)):
-                    raise ValueError("not of its class basis's width and its grid's levels")
-            except (ValueError, EOFError) as exc:
-                raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
-            self._tensors[k] = model
-        model = self._tensors[k]
+        model = self._tensor_model(row["class"], width)
         frames = model.factors[0].shape[0]
         path = path_of_moves(decode_bytes(moves, frames + row["frames"]), frames, row["frames"])
         return prediction(model, tuple(row["tensor_at"]), path)
 
+    @_built_once
+    def _tensor_model(self, k: int, width: int) -> TensorModel:
+        name, levels = f"tensor/{k:04d}", self.meta["classes"][k]["levels"]
+        try:
+            model = TensorModel.decode(self._reader.read(name))
+            if model.factors[1].shape[0] != width or [f.shape[0] for f in model.factors[2:]] != list(map(len, levels)):
+                raise ValueError("not of its class basis's width and its grid's levels")
+        except (ValueError, EOFError) as exc:
+            raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
+        return model
+
     def _coded_clip(self, blob: bytes, shapes) -> CodedClip:
         return CodedClip.from_payload(blob, self.settings.coefficient_coder, shapes, self.priors)
 
+    @_built_once
     def _model(self, k: int) -> SkeletonModel:
-        if k not in self._models:
-            if self.meta["skeletons"][k].get("format") == "bvh":
-                self._models[k] = self.bvh_skeleton(k).model
-                return self._models[k]
-            try:
-                asf = parse_asf(self.skeleton_text(k).encode("latin-1"), self.meta["skeletons"][k]["name"])
-                self._models[k] = SkeletonModel.from_asf(asf)
-            except (MocapFormatError, ValueError) as exc:
-                if isinstance(exc, ArchiveError):
-                    raise
-                raise ArchiveError(f"skeletons: skeleton {k} is not a valid ASF ({exc})", self.path) from exc
-        return self._models[k]
+        if self.meta["skeletons"][k].get("format") == "bvh":
+            return self.bvh_skeleton(k).model
+        try:
+            asf = parse_asf(self.skeleton_text(k).encode("latin-1"), self.meta["skeletons"][k]["name"])
+            return SkeletonModel.from_asf(asf)
+        except (MocapFormatError, ValueError) as exc:
+            if isinstance(exc, ArchiveError):
+                raise
+            raise ArchiveError(f"skeletons: skeleton {k} is not a valid ASF ({exc})", self.path) from exc
 
+    @_built_once
     def bvh_joints(self, k: int) -> list[BvhJoint]:
         """The joints of skeleton k, a BVH hierarchy (ArchiveError if it is none)."""
-        if k not in self._bvh_joints:
-            record = self.meta["skeletons"][k]
-            try:
-                text = self.skeleton_text(k).encode("latin-1").decode(record["encoding"])
-                if not text.endswith(("\n", "\r")):
-                    raise ValueError("it does not end with a line end, before which MOTION would begin")
-                self._bvh_joints[k] = parse_hierarchy(text, record["name"])
-            except (MocapFormatError, ValueError) as exc:
-                raise ArchiveError(f"skeletons: skeleton {k} is not a valid BVH hierarchy ({exc})", self.path) from exc
-        return self._bvh_joints[k]
+        record = self.meta["skeletons"][k]
+        try:
+            text = self.skeleton_text(k).encode("latin-1").decode(record["encoding"])
+            if not text.endswith(("\n", "\r")):
+                raise ValueError("it does not end with a line end, before which MOTION would begin")
+            return parse_hierarchy(text, record["name"])
+        except (MocapFormatError, ValueError) as exc:
+            raise ArchiveError(f"skeletons: skeleton {k} is not a valid BVH hierarchy ({exc})", self.path) from exc
 
+    @_built_once
     def bvh_skeleton(self, k: int) -> BvhSkeleton:
-        """Skeleton k, a BVH hierarchy, with its model and its clips' channel layout; built once."""
-        if k not in self._bvh_skeletons:
-            record = self.meta["skeletons"][k]
-            try:
-                self._bvh_skeletons[k] = bvh_skeleton(self.bvh_joints(k), record["units"], record["name"])
-            except MocapFormatError as exc:
-                if isinstance(exc, ArchiveError):
-                    raise
-                raise ArchiveError(f"skeletons: skeleton {k} has no model ({exc})", self.path) from exc
-        return self._bvh_skeletons[k]
+        """Skeleton k, a BVH hierarchy, with its model and its clips' channel layout."""
+        record = self.meta["skeletons"][k]
+        try:
+            return bvh_skeleton(self.bvh_joints(k), record["units"], record["name"])
+        except MocapFormatError as exc:
+            if isinstance(exc, ArchiveError):
+                raise
+            raise ArchiveError(f"skeletons: skeleton {k} has no model ({exc})", self.path) from exc
 
+    @_built_once
     def _decode_tail(self, k: int, layout: ChannelLayout) -> DecodeTail:
-        """The decode tail of skeleton k's clips with this layout, built once: its tables and the
+        """The decode tail of skeleton k's clips with this layout: its tables and the
         representation's skeleton params (a rest pose through the encoder) cost more than
         decoding a short clip."""
-        if (k, layout) not in self._tails:
-            model, representation = self._model(k), self.stages["representation"]
-            self._tails[k, layout] = DecodeTail(model, representation, layout,
-                                                skeleton_params(model, representation, layout),
-                                                self.settings.axis_weight_cm)
-        return self._tails[k, layout]
+        model, representation = self._model(k), self.stages["representation"]
+        return DecodeTail(model, representation, layout, skeleton_params(model, representation, layout),
+                          self.settings.axis_weight_cm)
 
+    @_built_once
     def _basis(self, k: int) -> ClassBasis:
-        if k not in self._bases:
-            name = f"class/{k:04d}"
-            try:
-                self._bases[k] = self._decode_class(self._reader.read(name))
-            except (ValueError, KeyError) as exc:
-                raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
-        return self._bases[k]
+        name = f"class/{k:04d}"
+        try:
+            return self._decode_class(self._reader.read(name))
+        except (ValueError, KeyError) as exc:
+            raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
 
     def stream_sizes(self) -> dict[str, int]:
         return self._reader.sizes()
@@ -394,8 +411,14 @@ class Archive:
             return
         # Lossy clips decode in numba kernels that release the GIL: threads, which need no file
         # pickled back from a worker (the shared CMU set at 1 cm, -j 2: 0.89x the time of worker
-        # processes). The caches below (`_model`, `_basis`, ...) fill on first use; threads that
-        # race to fill one entry build the same value, and either is kept.
+        # processes). What the threads share is built once (`_built_once`); the skeletons first,
+        # here, in the order of their first clips, so that their warnings come in -j 1's order.
+        for k in dict.fromkeys(self.clips[index]["skeleton"] for kind, index in entries if kind == "amc"):
+            try:
+                self._model(k)
+            except ArchiveError:
+                pass  # raised again at its first clip's turn, after the files before it
+
         def made(entry: tuple[str, int]) -> bytes | None:
             data = self.file_bytes(*entry)
             return data if keep else None
