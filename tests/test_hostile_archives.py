@@ -11,8 +11,10 @@ import os
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
 import hostile_archives
+from mocapzip.cli.main import main
 
 CASES = hostile_archives.cases(Path("/placeholder"))  # names only; each test builds its case in its own tree
 
@@ -25,12 +27,14 @@ def test_hostile_archive_is_refused_in_one_line(name, tmp_path):
 
 
 def test_every_golden_archive_passes_the_same_checks(tmp_path):
-    """The checks refuse what is hostile, not what is valid: each base archive decompresses."""
+    """The checks refuse what is hostile, not what is valid: each base archive decompresses. (In
+    this process, not in a limited child as the hostile cases: a valid archive needs no limit, and
+    a child's start-up cost 11 s of the fast tier.)"""
     for base, path in hostile_archives.BASES.items():
         out = tmp_path / base
         for command in (("test", "-q", path), ("info", "--json", path), ("decompress", "-q", path, "-o", out)):
-            result = hostile_archives.run_mcz(*map(str, command))
-            assert result.returncode == 0, result.stderr
+            result = CliRunner().invoke(main, list(map(str, command)))
+            assert result.exit_code == 0, result.output
         bvh = ["dataset-1_walk-back_normal_001.bvh"] if base.endswith(("_bvh", "_plant", "_tensor")) else []
         assert sorted(p.name for p in out.iterdir()) == ["09.asf", "09_01.amc", "64.asf", "64_01.amc", *bvh]
 
