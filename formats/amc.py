@@ -68,6 +68,7 @@ from mocapzip.formats.amc_compiled import (
     format_frames,
     scan_frames,
     scan_tokens,
+    with_numbers,
 )
 
 __all__ = ["AmcStyle", "Motion", "read_amc", "parse_amc", "format_amc", "write_amc"]
@@ -609,26 +610,17 @@ def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | N
         int(style.digits),
         max(2, style.exponent_digits),
     )
-    text = text.tobytes()
-    if hard.size:
-        text = _with_python_numbers(text, hard, values, frames, style)
-    text = head + text.decode("utf-8", "surrogatepass")
+    per_row = values.shape[1] + 1
+
+    def number(item: int) -> str:  # a number format_frames left, as Python's % writes it
+        row, column = divmod(item, per_row)
+        text = "%d" % float(frames[row]) if column == 0 else style.number_format % float(values[row, column - 1])
+        return _widen_exponents(text, style)
+
+    text = head + with_numbers(text.tobytes(), hard, number).decode("utf-8", "surrogatepass")
     if not style.final_newline and text.endswith(nl):
         text = text[: -len(nl)]
     return text
-
-
-def _with_python_numbers(text: bytes, hard: np.ndarray, values: np.ndarray, frames: np.ndarray, style: AmcStyle) -> bytes:
-    """`text` with the numbers `format_frames` left to Python (`hard`: offset, item) written in."""
-    per_row = values.shape[1] + 1
-    pieces, done = [], 0
-    for at, item in hard.tolist():
-        row, column = divmod(item, per_row)
-        number_ = "%d" % float(frames[row]) if column == 0 else style.number_format % float(values[row, column - 1])
-        pieces += [text[done:at], _widen_exponents(number_, style).encode()]
-        done = at
-    pieces.append(text[done:])
-    return b"".join(pieces)
 
 
 _EXPONENT = re.compile(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])")

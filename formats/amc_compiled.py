@@ -14,11 +14,11 @@ is the rule the former NumPy parser had (at most 22 bytes, the bytes read as dig
 2**53, the exponent within +-22), so a damaged file is reported at the same word as before.
 
 Writing: `format_frames` (AMC) and `format_rows` (BVH frame lines) write numbers as Python's
-`%d`, `%.<p>g` and `%.<p>f` do. Those
-round the exact binary value half to even; here the value is scaled by one correctly rounded
-operation and rounded from there, which decides every rounding but where the scaled value is
-exactly a half, or outside the ranges where that holds (more than 15 digits, scales beyond
-1e22): those numbers are left to Python (`hard`), so the text is always Python's.
+`%d`, `%.<p>g` and `%.<p>f` do. Those round the exact binary value half to even; here the value
+is scaled by one correctly rounded operation and rounded from there, which decides every
+rounding but where the scaled value is exactly a half, or outside the ranges where that holds
+(more than 15 digits, scales beyond 1e22): those numbers are left to Python (`hard`, written in
+by `with_numbers`), so the text is always Python's.
 
 Every kernel and helper lives in this module: numba's cache (`cache=True`) does not notice an
 edit of a helper in another module, nor a changed constant of one (limits are arguments). The
@@ -592,3 +592,16 @@ def format_rows(values, separator, ending, fixed, digits):
                 pos = end
         pos = _put(out, pos, ending, 0, ending.size)
     return out[:pos], hard[:n_hard]
+
+
+def with_numbers(text: bytes, hard: np.ndarray, number) -> bytes:
+    """`text` from `format_frames` or `format_rows` with the numbers they left to Python written
+    in at their offsets; `number(item)` is an item's text."""
+    if not hard.size:
+        return text
+    pieces, done = [], 0
+    for at, item in hard.tolist():
+        pieces += [text[done:at], number(item).encode()]
+        done = at
+    pieces.append(text[done:])
+    return b"".join(pieces)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapzip.formats.amc_compiled import format_rows, scan_lines
+from mocapzip.formats.amc_compiled import format_rows, scan_lines, with_numbers
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, check_text, detect_encoding, number,
                                    open_regular_file, read_regular_file)
@@ -80,19 +80,11 @@ class BvhStyle:
         return text + self.after
 
     def _compiled_rows(self, values: np.ndarray, ending: str) -> str:
-        spec = f".{int(self.number[1:])}{self.number[0]}"
+        spec, flat = f".{int(self.number[1:])}{self.number[0]}", values.ravel()
         text, hard = format_rows(values, np.frombuffer(self.separator.encode(), np.uint8),
                                  np.frombuffer(ending.encode(), np.uint8), self.number[0] == "f",
                                  int(self.number[1:]))
-        text = text.tobytes()
-        if hard.size:  # the numbers format_rows leaves, by Python, at their offsets
-            flat, pieces, done = values.ravel(), [], 0
-            for at, item in hard.tolist():
-                pieces += [text[done:at], format(float(flat[item]), spec).encode()]
-                done = at
-            pieces.append(text[done:])
-            text = b"".join(pieces)
-        return text.decode("ascii")
+        return with_numbers(text.tobytes(), hard, lambda item: format(float(flat[item]), spec)).decode("ascii")
 
 
 @dataclass

@@ -40,7 +40,7 @@ import traceback
 import warnings
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, wait
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from contextlib import contextmanager
 
 from threadpoolctl import threadpool_limits
@@ -206,26 +206,13 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
         for item in items:
             yield function(item)
         return
-    window = len(items) if window is None else max(1, window)
     others = set(multiprocessing.active_children())
     pool = ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork"),
                                initializer=_worker_start, initargs=(os.getpid(),))
-    pending: deque = deque()
     try:
-        queue = iter(items)
-
-        def submit() -> None:
-            for item in itertools.islice(queue, window - len(pending)):
-                pending.append(pool.submit(_call, function, item))
-
-        submit()
-        while pending:
-            result = _result(pending.popleft())
-            submit()
-            yield result
+        yield from _in_order(lambda item: pool.submit(_call, function, item), _result, items,
+                             len(items) if window is None else window)
     finally:
-        for future in pending:
-            future.cancel()
         _shut(pool, others)
 
 
@@ -241,21 +228,31 @@ def thread_imap(function: Callable, items: Sequence, jobs: int, window: int) -> 
             yield function(item)
         return
     pool = ThreadPoolExecutor(min(jobs, len(items)), thread_name_prefix="mcz-decode")
-    pending: deque = deque()
     try:
-        queue = iter(items)
+        yield from _in_order(lambda item: pool.submit(function, item), Future.result, items, window)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
+
+def _in_order(start: Callable, outcome: Callable, items: Sequence, window: int) -> Iterator:
+    """`outcome(start(item))` for each of `items` (`start` hands it to a pool: a future), in item
+    order, with at most `window` started and not yet yielded; when the iteration stops, those
+    not yet yielded are cancelled (the running ones cannot be: the caller's pool waits for them)."""
+    pending: deque = deque()
+    queue = iter(items)
+    try:
         def submit() -> None:
             for item in itertools.islice(queue, max(1, window) - len(pending)):
-                pending.append(pool.submit(function, item))
+                pending.append(start(item))
 
         submit()
         while pending:
-            result = pending.popleft().result()
+            result = outcome(pending.popleft())
             submit()
             yield result
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        for future in pending:
+            future.cancel()
 
 
 def _result(future):
