@@ -7,6 +7,7 @@ import os
 
 import click
 
+from mocapzip.cli import imports_done
 from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, max_error_value
 from mocapzip.cli.errors import reports_errors
 
@@ -99,6 +100,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
     from mocapzip.bench import runner as bench_module
     from mocapzip import progress
 
+    imports_done()
     if plot_path:  # fail before the long run, not after it
         try:
             import matplotlib  # noqa: F401

@@ -15,6 +15,7 @@ import json
 
 import click
 
+from mocapzip.cli import imports_done
 from mocapzip.cli.choices import REPRESENTATIONS
 from mocapzip.cli.errors import reports_errors
 
@@ -145,6 +146,7 @@ def classify(labels, train_inputs, test_inputs, representation, threshold, varia
     from mocapzip import progress
     from mocapzip.classes.ppca import format_table
 
+    imports_done()
     progress.QUIET = as_json or progress.QUIET
     chosen = None if only is None else {c.strip() for c in only.split(",") if c.strip()}
     report = run_classification(labels, train_inputs, test_inputs, representation, _threshold(threshold),

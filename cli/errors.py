@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import gc
 import os
 import select
 import signal
@@ -63,6 +64,7 @@ def reports_errors(command):
     def wrapper(*args, **kwargs):
         main_thread = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
+        gc.disable()  # while the command imports what it runs: `imports_done`
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("always")
@@ -86,6 +88,8 @@ def reports_errors(command):
         except KeyboardInterrupt as exc:
             _fail(f"interrupted ({exc.args[0] if exc.args else 'SIGINT'}); no partial file was left behind")
         finally:
+            gc.unfreeze()  # what `imports_done` froze: only the exit's collection is spared it (cli/__init__.py)
+            gc.enable()
             if main_thread:
                 signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 

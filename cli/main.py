@@ -16,6 +16,7 @@ import click
 from click.core import ParameterSource
 
 from mocapzip import __version__
+from mocapzip.cli import imports_done
 from mocapzip.cli.bench import bench
 from mocapzip.cli.classify import classify
 from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, contact_error_cm, max_error_cm,
@@ -74,6 +75,7 @@ def inspect(paths, asf, fps, units, as_json, check):
     """
     from mocapzip.inputs.inspect import inspect_paths
 
+    imports_done()
     report = inspect_paths(paths, asf=asf, fps=fps, check=check, units=units)
     if as_json:
         click.echo(json.dumps(report, indent=2))
@@ -269,6 +271,7 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
     from mocapzip import archive
     from mocapzip import progress
 
+    imports_done()
     progress.QUIET = quiet
     transform_config = {"id": transform}
     if transform == "dwt":
@@ -357,6 +360,7 @@ def decompress(archive_path, output, patterns, force, jobs, quiet):
     from mocapzip import archive
     from mocapzip import progress
 
+    imports_done()
     progress.QUIET = quiet
     summary = archive.decompress(archive_path, output, patterns, force=force, jobs=jobs)
     if not quiet:
@@ -380,6 +384,7 @@ def info(archive_path, show_clips, as_json):
     """
     from mocapzip import archive
 
+    imports_done()
     report = archive.info(archive_path)
     if as_json:
         click.echo(json.dumps(report, indent=2))
@@ -459,6 +464,7 @@ def test_archive(archive_path, jobs, quiet):
     from mocapzip import archive
     from mocapzip import progress
 
+    imports_done()
     progress.QUIET = quiet
     with archive.Archive(archive_path) as opened:
         opened.verify(jobs)
@@ -506,6 +512,7 @@ def convert(inputs, output, asf, units, force, skip_bad):
     """
     from mocapzip.convert import convert as convert_clips
 
+    imports_done()
     summary = convert_clips(list(inputs), output, asf=asf, units=units, force=force, skip_bad=skip_bad)
     skipped = f" ({_count(len(summary['skipped']), 'clip')} skipped)" if summary["skipped"] else ""
     click.echo(f"{_count(summary['clips'], 'clip')} -> {_count(len(summary['written']), 'file')} in {output}{skipped}",

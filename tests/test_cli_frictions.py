@@ -3,6 +3,7 @@ archives, the progress bar's unit, `info`'s wording and clip table, plurals, Ctr
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import signal
@@ -245,3 +246,28 @@ def test_a_closed_stdout_is_not_an_error(tmp_path):
                             preexec_fn=lambda: os.close(1))
     assert (result.returncode, result.stderr) == (0, "")
     assert len(list(out.iterdir())) >= 2
+
+
+def test_commands_collect_garbage_for_their_work_and_leave_it_as_it_was(tmp_path, monkeypatch):
+    """The collector is off while a command imports what it runs (`reports_errors`), on with those
+    objects frozen for its work (`imports_done`), and on with nothing frozen after it, failed or not."""
+    import mocapzip.cli.main as cli_main
+
+    seen = {}
+    real_imports_done, real_info = cli_main.imports_done, archive.info
+
+    def imports_done():
+        seen["importing"] = gc.isenabled()
+        real_imports_done()
+
+    def info(path):
+        seen["working"], seen["frozen"] = gc.isenabled(), gc.get_freeze_count()
+        return real_info(path)
+
+    monkeypatch.setattr(cli_main, "imports_done", imports_done)
+    monkeypatch.setattr(archive, "info", info)
+    assert run("info", GOLDEN_LOSSY).exit_code == 0
+    assert seen == {"importing": False, "working": True, "frozen": seen["frozen"]} and seen["frozen"] > 0
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    assert run("info", tmp_path / "missing.mcz").exit_code == 1
+    assert gc.isenabled() and gc.get_freeze_count() == 0
