@@ -10,6 +10,7 @@ import atexit
 import gc
 import os
 import sys
+from contextlib import contextmanager
 
 from mocapzip.defaults import BLAS_THREAD_VARIABLES
 
@@ -35,11 +36,19 @@ sys.excepthook = _interrupted  # installed here, before main.py imports click an
 atexit.register(gc.freeze)
 
 
-def imports_done() -> None:
-    """Called by a command once it has imported what it runs (`reports_errors` turns the garbage
-    collector off until then). Imports make a few hundred thousand objects that live for the whole
-    run, numba's registries above all, and collections while they were made walked them again and
-    again: 0.13 s of the 1.7 s a `mcz decompress` of the shared CMU set took. Frozen, they are
-    left out of every later collection, and collection is back on for the work itself."""
-    gc.freeze()
-    gc.enable()
+@contextmanager
+def importing():
+    """Around a command's imports: the garbage collector off while they run, and what they made
+    frozen after them (`reports_errors` unfreezes it when the command ends). numpy, numba, scipy
+    and the rest make a few hundred thousand objects that live for the whole run. Collections while
+    they were made walked them again and again, 0.13 s of the 1.7 s a `mcz decompress` of the
+    shared CMU set took; the first collection after them would walk them all once more, 0.05 s.
+    Frozen, they are left out of every later collection."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        if enabled:
+            gc.enable()

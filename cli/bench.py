@@ -7,7 +7,7 @@ import os
 
 import click
 
-from mocapzip.cli import imports_done
+from mocapzip.cli import importing
 from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, max_error_value
 from mocapzip.cli.errors import reports_errors
 
@@ -96,11 +96,11 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
       mcz bench ../shared/data/bvh-bandai -e 1 -e 0.5 --codec mcz --codec xz
       mcz bench clips/ -r channels -r positions -c none -c single --split 0,0.5,0.5 --codec mcz
     """
-    from mocapzip.bench import report as bench_report
-    from mocapzip.bench import runner as bench_module
-    from mocapzip import progress
+    with importing():
+        from mocapzip.bench import report as bench_report
+        from mocapzip.bench import runner as bench_module
+        from mocapzip import progress
 
-    imports_done()
     if plot_path:  # fail before the long run, not after it
         try:
             import matplotlib  # noqa: F401

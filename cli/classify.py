@@ -15,7 +15,7 @@ import json
 
 import click
 
-from mocapzip.cli import imports_done
+from mocapzip.cli import importing
 from mocapzip.cli.choices import REPRESENTATIONS
 from mocapzip.cli.errors import reports_errors
 
@@ -143,10 +143,10 @@ def classify(labels, train_inputs, test_inputs, representation, threshold, varia
       mcz classify --train ../shared/data/MANIFEST.tsv ../shared/data/cmu/35 ../shared/data/cmu/13/13_17.amc \\
                    --test ../shared/data/cmu/07 ../shared/data/cmu/09 ../shared/data/cmu/14 --only walk,run,boxing
     """
-    from mocapzip import progress
-    from mocapzip.classes.ppca import format_table
+    with importing():
+        from mocapzip import progress
+        from mocapzip.classes.ppca import format_table
 
-    imports_done()
     progress.QUIET = as_json or progress.QUIET
     chosen = None if only is None else {c.strip() for c in only.split(",") if c.strip()}
     report = run_classification(labels, train_inputs, test_inputs, representation, _threshold(threshold),

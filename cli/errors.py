@@ -57,14 +57,16 @@ def reports_errors(command):
     """Turn expected failures into one line on stderr and exit code 1.
 
     SIGTERM is handled like Ctrl-C (KeyboardInterrupt), so both unwind through the same
-    clean-up: writers remove their temporary files and no partial output is left.
+    clean-up: writers remove their temporary files and no partial output is left. What the
+    command's imports froze (`importing`) is unfrozen when it ends, unless something was frozen
+    before it: a caller in the same process keeps its collector as it was.
     """
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
         main_thread = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
-        gc.disable()  # while the command imports what it runs: `imports_done`
+        frozen = gc.get_freeze_count()  # before the command's `importing` freezes its imports
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("always")
@@ -88,8 +90,8 @@ def reports_errors(command):
         except KeyboardInterrupt as exc:
             _fail(f"interrupted ({exc.args[0] if exc.args else 'SIGINT'}); no partial file was left behind")
         finally:
-            gc.unfreeze()  # what `imports_done` froze: only the exit's collection is spared it (cli/__init__.py)
-            gc.enable()
+            if not frozen:
+                gc.unfreeze()  # what `importing` froze: only the exit's collection is spared it (cli/__init__.py)
             if main_thread:
                 signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 

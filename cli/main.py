@@ -16,7 +16,7 @@ import click
 from click.core import ParameterSource
 
 from mocapzip import __version__
-from mocapzip.cli import imports_done
+from mocapzip.cli import importing
 from mocapzip.cli.bench import bench
 from mocapzip.cli.classify import classify
 from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, contact_error_cm, max_error_cm,
@@ -73,9 +73,9 @@ def inspect(paths, asf, fps, units, as_json, check):
       mcz inspect ../shared/data/cmu/01 --check     what is broken in the source
       mcz inspect ../shared/data/bvh-bandai
     """
-    from mocapzip.inputs.inspect import inspect_paths
+    with importing():
+        from mocapzip.inputs.inspect import inspect_paths
 
-    imports_done()
     report = inspect_paths(paths, asf=asf, fps=fps, check=check, units=units)
     if as_json:
         click.echo(json.dumps(report, indent=2))
@@ -268,10 +268,10 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
     """
     if lossless:
         _refuse_lossy_options(click.get_current_context())
-    from mocapzip import archive
-    from mocapzip import progress
+    with importing():
+        from mocapzip import archive
+        from mocapzip import progress
 
-    imports_done()
     progress.QUIET = quiet
     transform_config = {"id": transform}
     if transform == "dwt":
@@ -357,10 +357,10 @@ def decompress(archive_path, output, patterns, force, jobs, quiet):
       mcz decompress cmu.mcz -o out/
       mcz decompress cmu.mcz -o out/ --clip '07/*'
     """
-    from mocapzip import archive
-    from mocapzip import progress
+    with importing():
+        from mocapzip import archive
+        from mocapzip import progress
 
-    imports_done()
     progress.QUIET = quiet
     summary = archive.decompress(archive_path, output, patterns, force=force, jobs=jobs)
     if not quiet:
@@ -382,9 +382,9 @@ def info(archive_path, show_clips, as_json):
     its max (the largest distance of any joint in any frame: what --max-error bounds).
     Frames patched to meet --max-error are counted per clip.
     """
-    from mocapzip import archive
+    with importing():
+        from mocapzip import archive
 
-    imports_done()
     report = archive.info(archive_path)
     if as_json:
         click.echo(json.dumps(report, indent=2))
@@ -461,10 +461,10 @@ def _clip_table(clips: list[dict], names: list[str]) -> None:
 @reports_errors
 def test_archive(archive_path, jobs, quiet):
     """Verify ARCHIVE without writing anything: every checksum, every clip decoded (like zstd -t)."""
-    from mocapzip import archive
-    from mocapzip import progress
+    with importing():
+        from mocapzip import archive
+        from mocapzip import progress
 
-    imports_done()
     progress.QUIET = quiet
     with archive.Archive(archive_path) as opened:
         opened.verify(jobs)
@@ -510,9 +510,9 @@ def convert(inputs, output, asf, units, force, skip_bad):
                                                    x.bvh -> amc/x.amc and amc/x.asf (4 clips whose
                                                    extra root moves are left out)
     """
-    from mocapzip.convert import convert as convert_clips
+    with importing():
+        from mocapzip.convert import convert as convert_clips
 
-    imports_done()
     summary = convert_clips(list(inputs), output, asf=asf, units=units, force=force, skip_bad=skip_bad)
     skipped = f" ({_count(len(summary['skipped']), 'clip')} skipped)" if summary["skipped"] else ""
     click.echo(f"{_count(summary['clips'], 'clip')} -> {_count(len(summary['written']), 'file')} in {output}{skipped}",

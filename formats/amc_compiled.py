@@ -27,8 +27,8 @@ path, 4 s for writing; later runs load the cache from __pycache__ in a fraction 
 The small helpers that take an array and run for every value are inlined (`inline="always"`):
 a compiled call that passes an array pays for reference counting, which cost reading 15 % and
 writing a quarter of its time. So is `_put_general`, which writes the usual "g" numbers (CMU's
-and Bandai's): 10 % less time writing the shared CMU set, for a second more of compiling, once.
-The rarer `_put_fixed` and `_put_int` are not.
+and Bandai's): 10 % less time writing the shared CMU set, for about a second more of compiling
+each of `format_frames` and `format_rows`, once. The rarer `_put_fixed` and `_put_int` are not.
 """
 
 from __future__ import annotations
@@ -330,10 +330,11 @@ def scan_lines(body, n_lines, width, max_abs_value):
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _put_digits(out, end, n, count):
-    """The last `count` digits of `n` >= 0 (zero-padded) into out[end - count:end]; returns
-    n // 10**count. Two digits a step: each division costs more than the table look-up. In
-    unsigned integers: for signed ones numba adds Python's floor-division and negative-index
-    corrections to every step (writing the shared CMU set took 8 % longer)."""
+    """The last `count` <= `end` digits of 0 <= `n` < 2**63 (zero-padded) into
+    out[end - count:end]; returns n // 10**count. Two digits a step: each division costs more
+    than the table look-up. In unsigned integers: for signed ones numba adds Python's
+    floor-division and negative-index corrections to every step (writing the shared CMU set took
+    8 % longer)."""
     u = np.uint64(n)
     at = np.uint64(end)
     while count >= 2:

@@ -243,7 +243,7 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("meta_fake_content_size", "lossy", _stream("meta", _fake_content_size(1 << 40)), "meta"))
     # 4. Meta of the wrong shape.
     for label, edit, section in (
-        ("no_tool", _delete("tool"), "meta: (top level)"),
+        ("no_tool", _delete("tool"), "meta: (top level): must contain ['tool'] properties"),
         ("encoding_rot13", _set("clips.0.style.encoding", "rot13"), "meta: clips[0].style.encoding"),
         ("skeleton_99", _set("clips.0.skeleton", 99), "meta: clips[0].skeleton"),
         ("first_frame_string", _set("clips.0.first_frame", "1"), "meta: clips[0].first_frame"),
@@ -256,7 +256,7 @@ def cases(watched: Path) -> list[Case]:
                                                "error_cm": 0, "max_error_cm": 0}])),
          "meta: clips[0].segment_overlap"),
         ("clips_dict", _set("clips", {"0": {}}), "meta: clips"),
-        ("no_settings", _delete("settings"), "meta: (top level)"),
+        ("no_settings", _delete("settings"), "meta: (top level): must contain ['settings'] properties"),
         ("transform_none", _set("settings.transform", {"id": "none"}), "meta: settings.transform"),
         ("wavelet_unknown", _set("settings.transform", {"id": "dwt", "wavelet": "evil", "level": None}),
          "meta: settings.transform.wavelet"),

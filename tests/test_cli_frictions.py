@@ -248,26 +248,48 @@ def test_a_closed_stdout_is_not_an_error(tmp_path):
     assert len(list(out.iterdir())) >= 2
 
 
+def test_importing_turns_the_collector_off_and_freezes_what_was_made(monkeypatch):
+    from mocapzip.cli import importing
+
+    monkeypatch.setattr(gc, "freeze", lambda: frozen.append(gc.isenabled()))
+    frozen = []
+    assert gc.isenabled()
+    with importing():
+        assert not gc.isenabled()
+    assert gc.isenabled() and frozen == [False]  # frozen before collection is back on
+    with pytest.raises(ImportError), importing():
+        raise ImportError("a missing module")
+    assert gc.isenabled() and frozen == [False, False]
+    gc.disable()
+    try:
+        with importing():
+            pass
+        assert not gc.isenabled()  # a collector that was off stays off
+    finally:
+        gc.enable()
+
+
 def test_commands_collect_garbage_for_their_work_and_leave_it_as_it_was(tmp_path, monkeypatch):
-    """The collector is off while a command imports what it runs (`reports_errors`), on with those
-    objects frozen for its work (`imports_done`), and on with nothing frozen after it, failed or not."""
-    import mocapzip.cli.main as cli_main
-
+    """A command works with its imports frozen (`importing`) and the collector on; after it, failed
+    or not, nothing stays frozen, unless something was frozen before it."""
     seen = {}
-    real_imports_done, real_info = cli_main.imports_done, archive.info
-
-    def imports_done():
-        seen["importing"] = gc.isenabled()
-        real_imports_done()
+    real_info = archive.info
 
     def info(path):
         seen["working"], seen["frozen"] = gc.isenabled(), gc.get_freeze_count()
         return real_info(path)
 
-    monkeypatch.setattr(cli_main, "imports_done", imports_done)
     monkeypatch.setattr(archive, "info", info)
+    assert gc.get_freeze_count() == 0
     assert run("info", GOLDEN_LOSSY).exit_code == 0
-    assert seen == {"importing": False, "working": True, "frozen": seen["frozen"]} and seen["frozen"] > 0
+    assert seen["working"] and seen["frozen"] > 0
     assert gc.isenabled() and gc.get_freeze_count() == 0
     assert run("info", tmp_path / "missing.mcz").exit_code == 1
     assert gc.isenabled() and gc.get_freeze_count() == 0
+    gc.freeze()  # a caller's own frozen objects
+    try:
+        callers = gc.get_freeze_count()
+        assert run("info", GOLDEN_LOSSY).exit_code == 0
+        assert gc.get_freeze_count() >= callers > 0
+    finally:
+        gc.unfreeze()

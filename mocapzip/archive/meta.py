@@ -1,7 +1,7 @@
 """The archive's `meta` stream: its schema, and every check a reader makes before using it.
 
 Meta comes from a file that may come from anyone, so nothing in it is used until it has
-passed `validate`: a JSON Schema for shapes and types (`SCHEMA`, compiled once), then the
+passed `validate`: a JSON Schema for shapes and types (`SCHEMA`, compiled once per process), then the
 checks a schema cannot state: indices in range, sizes within `limits`, and output paths
 that stay inside the folder the user named (docs/format.md, "Limits" and "Paths").
 A failure is one `ArchiveError` naming the archive and the field.
@@ -179,8 +179,8 @@ ADDED_IN = {
 @functools.cache
 def _schema_check(detailed: bool):
     """The schema compiled. Archives are checked without detailed exceptions, whose code took
-    0.03 s more to compile on every opening; one that fails is checked again with them, for the
-    failing field's name (`validate`)."""
+    0.03 s more to compile in every process that opens an archive; meta that fails is checked
+    again with them, for the failing field's name and the whole problem (`validate`)."""
     return fastjsonschema.compile(SCHEMA, detailed_exceptions=detailed)
 
 
