@@ -22,6 +22,7 @@ from mocapzip.cli.classify import classify
 from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, contact_error_cm, max_error_cm,
                                   max_error_value)
 from mocapzip.cli.errors import reports_errors
+from mocapzip.cluster import LOCAL_WORKERS_PER_CORE, ClusterError, parse_address
 from mocapzip.defaults import DEFAULT_CACHE_MB, DEFAULT_FPS
 
 
@@ -144,6 +145,17 @@ def _not_stdout(ctx, param, value):
     return value
 
 
+def _dask_address(ctx, param, value):
+    """A malformed --dask (`local:0`, `local:100000`: more workers than this machine can start) is a
+    usage error, found before any work."""
+    if value is not None:
+        try:
+            parse_address(value)
+        except ClusterError as exc:
+            raise click.BadParameter(str(exc).removeprefix("--dask "), ctx, param) from None
+    return value
+
+
 # Options that only tune the lossy codec: given with --lossless they would be silently ignored.
 LOSSY_ONLY = ("error_cm", "max_error", "contact_error", "plant_feet", "repair_glitches", "representation", "transform", "wavelet", "level", "knot_spacing", "split", "segment", "model", "modes")
 
@@ -229,13 +241,13 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
               help="Memory (MB) for clips kept between the codec's passes; the others are read again from disk, "
                    "so memory stays bounded however large the database. -c auto and --segment keep every clip "
                    "in memory regardless. With --dask, each worker keeps as much of the class it codes.")
-@click.option("--dask", "dask_address", metavar="ADDRESS", default=None,
+@click.option("--dask", "dask_address", metavar="ADDRESS", default=None, callback=_dask_address,
               help="Run the work as tasks on a Dask cluster instead of -j local workers (pip install "
                    "'mocapzip[dask]'; docs/cluster.md): a scheduler's address (tcp://host:8786), or local:N to "
-                   "start N worker processes here. The workers read the clips themselves, by the paths found "
-                   "here: the data must be on storage they share with this machine, at the same paths. This "
-                   "process writes the archive, byte-identical to -j's where the workers run the same mcz, "
-                   "numpy and numba as here.")
+                   f"start N worker processes here (at most {LOCAL_WORKERS_PER_CORE} per core). The workers read the "
+                   "clips themselves, by the paths found here: the data must be on storage they share with this "
+                   "machine, at the same paths. This process writes the archive, byte-identical to -j's where "
+                   "the workers run the same mcz, numpy and numba as here.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 @click.option("--skip-bad", is_flag=True,
               help="Leave out clips that cannot be read (listed on stderr, in --json and in the archive) "
@@ -500,8 +512,11 @@ def convert(inputs, output, asf, units, force, skip_bad):
     BVH to ASF/AMC: mcz's model of the hierarchy (docs/bvh.md): bones in cm with identity axes,
     a link bone ("P>child") for each further child of a joint, the root named root, the frame
     rate in the ASF's documentation (fps:30). Refused: an extra root above the hips that moves,
-    a joint other than the root whose position channels move, a joint named root. --asf applies
-    to AMC files only.
+    a joint other than the root whose position channels move. --asf applies to AMC files only.
+    Names a format cannot hold (in an ASF/AMC a number, ':' or '#' first, root; in a BVH a brace
+    or a keyword) are written escaped with %XX, and an ASF records its joints' BVH names, which a
+    conversion back restores (docs/bvh.md, "Names"). A clip whose files mcz would refuse (more
+    bones or joints than it takes) is refused.
 
     \b
     Examples:

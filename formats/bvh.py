@@ -7,7 +7,7 @@ position channels on the root (CMU's conversion, mixed CRLF/LF line ends), or 6 
 joint and an extra root above the hips (Bandai Namco's game-studio export), any rotation order.
 
 Strict: every fault raises MocapFormatError naming file and line (a brace missing, a channel
-name that is no channel, a frame line with too few values, `Frames:` disagreeing with the lines,
+name that is no channel, a frame line with too few values, `Frames:` 0 or disagreeing with the lines,
 a number that is no finite number). Exact: a file read and written back is the same bytes. A
 Bvh read from a file keeps its text as read (`header`, `frames_text`) and its values read-only;
 to write other values, make a new one (`dataclasses.replace(bvh, values=..., frames_text=None)`):
@@ -33,6 +33,7 @@ CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zr
 _CHANNEL_NAMES = {name.lower(): name for name in CHANNELS}
 MAX_HIERARCHY_CHARS = 1 << 20  # the text before MOTION: a 1,024-joint skeleton takes about 200 KB
 MAX_HIERARCHY_DEPTH = 200  # joints within joints (a human: about 10; each level is a Python call)
+_WHAT = "a text BVH file"  # what `check_text` says the file should have been
 # tried in this order (`_style_of`)
 NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17", "f6", "f3", "f4", "f5", "f7", "f8", "f9")
 
@@ -133,12 +134,14 @@ def read_bvh(path: str | os.PathLike) -> Bvh:
 
 def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
     """A BVH file's bytes -> Bvh; see the module doc for what is checked."""
-    data = check_text(data, path)
+    data = check_text(data, path, _WHAT)
     encoding = detect_encoding(data)
     text = data.decode(encoding)
     parser = _Parser(text, path)
     joints = parser.hierarchy()
     n_frames, frame_time, header_end, first_line = parser.motion_header()
+    if not n_frames:  # as an AMC with header lines only: a clip is motion, and every reader's shapes need a frame
+        raise MocapFormatError("no frames: Frames: 0", path, first_line - 2)
     width = sum(len(joint.channels) for joint in joints)
     if n_frames * max(width, 1) > MAX_VALUES_PER_CLIP:
         raise MocapFormatError(f"{n_frames} frames of {width} values are more than the {MAX_VALUES_PER_CLIP:,} "
@@ -167,9 +170,10 @@ def read_hierarchy(path: str | os.PathLike) -> tuple[str, str]:
                 break
     head = bytes(head)
     if motion is None:
+        check_text(head, os.fspath(path), _WHAT)  # empty, UTF-16 or binary: say so rather than "no MOTION"
         where = f" in its first {len(head):,} bytes" if chunk else ""  # stopped short of the end
         raise MocapFormatError(f"no MOTION line{where}: not a BVH file", os.fspath(path))
-    hierarchy = check_text(head[: motion.start()], os.fspath(path)) if motion.start() else b""
+    hierarchy = check_text(head[: motion.start()], os.fspath(path), _WHAT) if motion.start() else b""
     encoding = detect_encoding(hierarchy)
     return hierarchy.decode(encoding), encoding
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import errno
 import functools
 import io
 import itertools
@@ -35,7 +36,12 @@ from mocapzip.formats.text import open_regular_file
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
 
-FORMAT_VERSION = 11
+FORMAT_VERSION = 12
+# HDF5 object versions no newer than HDF5 1.10's (format 12 on). With "latest", h5py's own HDF5
+# decides: HDF5 2.0 writes a chunked dataset's filter pipeline in a message version 1.10's tools
+# cannot read (`h5ls -r`: "/index Dataset *ERROR*"), and the bytes of an archive depended on the
+# HDF5 that wrote it. Measured with HDF5 2.0: attribute-index archives are byte-identical either way.
+LIBVER = ("v110", "v110")
 MAGIC = "MCZ mocapzip archive"
 _WRITE_BATCH = 1 << 20  # one h5py write per small stream costs ~50 us; batch them instead
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -125,7 +131,7 @@ def _check_target(path: str, tool_version, overwrite: bool) -> None:
     except FileNotFoundError:
         return
     if not overwrite:
-        raise FileExistsError(f"refusing to overwrite existing file {path} (pass overwrite=True)")
+        raise FileExistsError(errno.EEXIST, "refusing to overwrite an existing file (pass overwrite=True)", path)
     if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
         raise OSError(None, "not a regular file; refusing to replace it", path)
 
@@ -239,7 +245,7 @@ def _write_hdf5(file: _HDF5Output, streams: Mapping[str, bytes | SpooledStream],
                 contents: dict | None) -> None:
     # meta_block_size=0 and "all metadata before any raw data" keep HDF5 from leaving 2 KB
     # half-empty aggregation blocks inside the file: the empty archive shrinks from ~2 KB to ~1 KB.
-    with h5py.File(file, "x", libver="latest", track_order=False, meta_block_size=0) as f:
+    with h5py.File(file, "x", libver=LIBVER, track_order=False, meta_block_size=0) as f:
         items = list(streams.items())
         for name, value in items:
             _check_stream(name, value)

@@ -100,21 +100,22 @@ def write_file_atomically(path: Path, data: bytes) -> None:
 # --------------------------------------------------------------------------- decoding
 
 
-def check_text(data: bytes, path: str | None) -> bytes:
-    """`data` without a UTF-8 byte-order mark; MocapFormatError for empty, UTF-16 or binary input."""
+def check_text(data: bytes, path: str | None, what: str = "an ASCII Acclaim file") -> bytes:
+    """`data` without a UTF-8 byte-order mark; MocapFormatError for empty, UTF-16 or binary input
+    (`what` the file should have been, for the message)."""
     if not isinstance(data, (bytes, bytearray, memoryview)):
         raise TypeError(f"expected bytes, got {type(data).__name__}")
     data = bytes(data)
     if data.startswith(_UTF8_BOM):
         data = data[len(_UTF8_BOM):]
     if data[:2] in _UTF16_BOMS:
-        raise MocapFormatError("UTF-16 text, not an ASCII Acclaim file", path, 1)
+        raise MocapFormatError(f"UTF-16 text, not {what}", path, 1)
     head = data[:65536]
     if b"\x00" in head:
         # ASCII stored as UTF-16 without a byte-order mark: every other byte is NUL.
         utf16 = head[1::2].count(0) > len(head) // 4 or head[0::2].count(0) > len(head) // 4
         kind = "UTF-16 text" if utf16 else "binary data (NUL bytes)"
-        raise MocapFormatError(f"{kind}, not an ASCII Acclaim file", path, line_of_offset(data, data.index(b"\x00")))
+        raise MocapFormatError(f"{kind}, not {what}", path, line_of_offset(data, data.index(b"\x00")))
     if not data or data.isspace():  # (strip() would copy the file)
         raise MocapFormatError("empty file", path, 1)
     return data

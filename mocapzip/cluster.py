@@ -31,7 +31,11 @@ import logging
 import os
 import pickle
 import signal
+import socket
+import struct
+import sys
 import threading
+import time
 import uuid
 from collections import deque
 from contextlib import contextmanager
@@ -45,7 +49,9 @@ from mocapzip.progress import progress
 # so (system time 11 s against 3 s, shared CMU set, one local worker). docs/cluster.md says how to
 # start remote workers without it.
 LOCAL_WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
-CONNECT_TIMEOUT_S = 20  # to reach a scheduler given by address
+CONNECT_TIMEOUT_S = 20  # to reach a scheduler given by address and have its handshake, however the peer behaves
+LOCAL_WORKERS_PER_CORE = 4  # `local:N`: at most this many worker processes per core of this machine
+HANDSHAKE_MAX_BYTES = 1 << 16  # a scheduler's first message, its handshake, takes about 60 bytes
 SMALLEST_WINDOW_PER_WORKER = 4  # imap's items in flight per worker, at least: enough to keep each one busy
 
 
@@ -54,11 +60,15 @@ class ClusterError(Exception):
 
 
 def parse_address(address: str) -> tuple[int | None, str | None]:
-    """(N, None) for `local` (N: the cores) or `local:N`; (None, address) for a scheduler's address."""
+    """(N, None) for `local` (N: the cores) or `local:N`; (None, address) for a scheduler's address.
+    N is capped: each worker is a process, and `local:100000` would try to start them all."""
     if address == "local" or address.startswith("local:"):
-        count = address.partition(":")[2] or str(os.cpu_count() or 1)
-        if not count.isdigit() or int(count) < 1:
-            raise ClusterError(f"--dask {address}: expected local or local:N with N a number of workers, 1 or more")
+        cores = os.cpu_count() or 1
+        count = address.partition(":")[2] or str(cores)
+        most = LOCAL_WORKERS_PER_CORE * cores
+        if not count.isdigit() or not 1 <= int(count) <= most:
+            raise ClusterError(f"--dask {address}: expected local or local:N with N a number of workers from 1 to "
+                               f"{most} ({LOCAL_WORKERS_PER_CORE} per core of this machine's {cores})")
         return int(count), None
     if not address or any(c.isspace() for c in address):
         raise ClusterError(f"--dask {address!r}: expected a scheduler address such as tcp://host:8786, or local:N")
@@ -78,10 +88,14 @@ def on_cluster(address: str, dashboard: bool = False):
     except ImportError:
         raise ClusterError("--dask needs Dask's distributed scheduler: pip install 'mocapzip[dask]'") from None
     if scheduler is not None:
-        try:  # checked before a Client is made: one that fails while it is made is collected later,
-            distributed.comm.get_address_host_port(scheduler)  # and its clean-up can deadlock another's start
+        # Checked before a Client is made: one that fails while it is made is collected later, and its
+        # clean-up can deadlock another's start. Dask's own connect waits for the handshake without a deadline.
+        try:
+            host, port = distributed.comm.get_address_host_port(scheduler)
         except ValueError as exc:
             raise ClusterError(f"the Dask scheduler at {scheduler} cannot be reached ({exc})") from None
+        if distributed.comm.parse_address(scheduler)[0] == "tcp":
+            _check_handshake(scheduler, host, port, CONNECT_TIMEOUT_S)
     with _blas_variables_kept(), _dask_logs_quiet():
         local = client = None
         try:
@@ -116,6 +130,88 @@ def on_cluster(address: str, dashboard: bool = False):
             client.close()
             if local is not None:
                 local.close()
+
+
+def _check_handshake(address: str, host: str, port: int, timeout: float) -> None:
+    """The peer at a tcp:// `address` answers a Dask handshake within `timeout` seconds from the
+    start of the connection, else `ClusterError`. Dask's own connect waits for that answer without
+    a deadline, and allocates what the answer's first 8 bytes declare: a port that never answers
+    hung the run, and one that answered HTTP asked for 3 EiB. Each size of the answer is checked
+    here before it is read. A peer refused or out of reach is tried again until the deadline, as
+    Dask does (a scheduler may be starting)."""
+    import msgpack  # a dependency of distributed
+
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            connection = socket.create_connection((host, port), timeout=max(deadline - time.monotonic(), 0.001))
+            break
+        except OSError as exc:
+            if time.monotonic() + 0.1 >= deadline:
+                raise ClusterError(f"the Dask scheduler at {address} cannot be reached "
+                                   f"({type(exc).__name__}: {exc.strerror or exc})") from None
+            time.sleep(0.1)
+    info = msgpack.packb({"compression": None, "python": tuple(sys.version_info)[:3],
+                          "pickle-protocol": pickle.HIGHEST_PROTOCOL})  # as Dask's `Comm.handshake_info`
+    received = bytearray()
+    try:
+        with connection:
+            connection.settimeout(max(deadline - time.monotonic(), 0.001))
+            # Ours first: a scheduler then drops the connection quietly when it closes (else Dask logs it).
+            connection.sendall(struct.pack("3Q", 16 + len(info), 1, len(info)) + info)
+            _receive(connection, received, 8, deadline)
+            (size,) = struct.unpack("Q", received)
+            if not 16 <= size <= HANDSHAKE_MAX_BYTES:  # the bytes tell what answered: b'HTTP/1.1', b'SSH-2.0-'
+                raise ValueError(f"its answer begins {bytes(received)!r}, read as a first message of {size:,} bytes")
+            _receive(connection, received, 8 + size, deadline)
+        _handshake(bytes(received[8:]))
+    except TimeoutError:
+        why = f"it sent {len(received)} bytes of a handshake within {timeout:g} s"
+    except (ConnectionError, EOFError):
+        why = f"it closed the connection after {len(received)} bytes of a handshake"
+    except OSError as exc:
+        why = f"{exc.strerror or exc} after {len(received)} bytes of a handshake"
+    except ValueError as exc:
+        why = str(exc)
+    else:
+        return
+    raise ClusterError(f"--dask {address}: not a Dask scheduler ({why})")
+
+
+def _receive(connection: socket.socket, received: bytearray, size: int, deadline: float) -> None:
+    """`received` filled up to `size` bytes from `connection` by `deadline` (TimeoutError), or
+    EOFError if the peer closes first."""
+    while len(received) < size:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError
+        connection.settimeout(left)
+        chunk = connection.recv(size - len(received))
+        if not chunk:
+            raise EOFError
+        received += chunk
+
+
+def _handshake(message: bytes) -> dict:
+    """The handshake a Dask message holds (as `distributed.comm.tcp` writes it, in native byte
+    order: a frame count, each frame's size, the frames; the first frame msgpack), each size
+    checked against the message before it is used; ValueError saying what is wrong."""
+    import msgpack  # a dependency of distributed
+
+    (frames,) = struct.unpack_from("Q", message)
+    if not 1 <= frames <= len(message) // 8 - 1:
+        raise ValueError(f"it declares {frames:,} frames in {len(message):,} bytes")
+    sizes = struct.unpack_from(f"{frames}Q", message, 8)
+    start = 8 * (1 + frames)
+    if sum(sizes) != len(message) - start:
+        raise ValueError(f"its frames' sizes add up to {sum(sizes):,} bytes, not the {len(message) - start:,} sent")
+    try:
+        handshake = msgpack.unpackb(message[start:start + sizes[0]])
+    except (ValueError, msgpack.UnpackException) as exc:
+        raise ValueError(f"its first frame is not msgpack ({type(exc).__name__})") from None
+    if not isinstance(handshake, dict) or not isinstance(handshake.get("pickle-protocol"), int):
+        raise ValueError("its first frame is not a Dask handshake")
+    return handshake
 
 
 @contextmanager

@@ -15,3 +15,4 @@ MAX_BONES_PER_SKELETON = 1 << 10  # ASF bones (CMU: 30); the kinematics holds a 
 MAX_DECODED_STREAM_BYTES = 1 << 28  # 256 MiB: what one zstd-coded stream (meta, skeletons, priors) may unpack to
 MAX_PATH_BYTES = 4096  # a stored clip path or skeleton name, UTF-8
 MAX_NATURAL_MODES = 8  # --model tensor: the natural modes of a class's grid (classes.modes, codec.tensor)
+MAX_TENSOR_MODEL_NUMBERS = 1 << 23  # --model tensor: the numbers one model stores (mean, core, factors), 64 MiB as int64

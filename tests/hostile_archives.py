@@ -275,7 +275,8 @@ def cases(watched: Path) -> list[Case]:
         ("unknown_row_field", _set("clips.0.evil", 1), "meta: clips[0]"),
         ("twist_flips_beyond_clip", _set("clips.0.twist_flips", {"rthumb": [0, 10**6]}), "meta: clips[0].twist_flips"),
         ("auto_coder_in_lossy", _set("settings.coefficient_coder", "auto"), "meta: settings.coefficient_coder"),
-        ("format_1_coder_in_format_4", _set("settings.coefficient_coder", "zstd"), "meta: settings.coefficient_coder"),
+        ("format_1_coder_in_format_4", _both(_set("settings.coefficient_coder", "zstd"), _stream("priors", None)),
+         "meta: settings.coefficient_coder"),
         ("no_axes_from_positions", _delete("settings.axes_from_positions"), "meta: settings.axes_from_positions"),
         ("dead_zone_half", _set("settings.dead_zone", 0.5), "meta: settings.dead_zone"),
         ("segments_without_setting", _set("clips.0.segments", [{"first": 0, "frames": 1, "class": 0, "error_cm": 0,
@@ -419,7 +420,7 @@ def _model_of_no_mode() -> bytes:
 def _other_grid_model() -> bytes:
     """The format-11 base's tensor model with a third level on its one mode: not its class's grid."""
     with ArchiveReader(BASES["lossy_tensor"]) as reader:
-        model = TensorModel.decode(reader.read("tensor/0001"))
+        model = TensorModel.decode(reader.read("tensor/0001"), (448, 129, 2))  # 64_01's frames, pose values, subjects
     model.factors[2] = np.vstack([model.factors[2], model.factors[2][:1]])
     return model.encode()
 
@@ -477,13 +478,14 @@ def _fake_content_size(size: int) -> bytes:
     return bytes(frame[:insert_at] + size.to_bytes(8, "little") + frame[insert_at:])
 
 
-def build(case: Case, archive: Path) -> None:
-    """Write the hostile archive of `case` to `archive` through the project's writer."""
-    with ArchiveReader(BASES[case.base]) as reader:
+def build(case: Case, archive: Path, base: Path | None = None) -> None:
+    """Write the hostile archive of `case` to `archive` through the project's writer, from
+    BASES[case.base], or from `base`, an archive this version's compress wrote."""
+    with ArchiveReader(base or BASES[case.base]) as reader:
         streams = {name: reader.read(name) for name in reader.names()}
     meta = json.loads(entropy.decode_bytes(streams["meta"], dictionary=dictionary("meta.json")))
     original_meta = streams["meta"]
-    if case.base != "lossy_tensor":  # the bases of formats 7 to 9 hold the packed texts alone
+    if base is None and case.base != "lossy_tensor":  # the bases of formats 7 to 9 hold the packed texts alone
         streams["skeletons"] = bytes([WHOLE_TEXTS]) + streams["skeletons"]
     case.edit(meta, streams)
     if "meta" in streams and streams["meta"] == original_meta:  # the edit changed meta's fields

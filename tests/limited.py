@@ -15,12 +15,14 @@ MEMORY_LIMIT = 2 << 30  # bytes of address space per child
 TIMEOUT = 60.0  # seconds
 
 
-def run_mcz(*args, cwd=None, memory: int = MEMORY_LIMIT) -> subprocess.CompletedProcess:
-    """`mcz ARGS` (run in `cwd`), its address space limited to `memory` bytes and its time to TIMEOUT."""
+def run_mcz(*args, cwd=None, memory: int = MEMORY_LIMIT, setup: str = "") -> subprocess.CompletedProcess:
+    """`mcz ARGS` (run in `cwd`), its address space limited to `memory` bytes and its time to TIMEOUT;
+    `setup`, Python run in the child first (a module constant made small for the test)."""
 
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
 
     env = {**os.environ, **dict.fromkeys(BLAS_THREAD_VARIABLES, "1")}
-    return subprocess.run([sys.executable, "-c", "from mocapzip.cli.main import main; main()", *map(os.fspath, args)],
+    code = f"{setup}\nfrom mocapzip.cli.main import main; main()"
+    return subprocess.run([sys.executable, "-c", code, *map(os.fspath, args)],
                           cwd=cwd, capture_output=True, text=True, timeout=TIMEOUT, preexec_fn=limit, env=env)

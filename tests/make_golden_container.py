@@ -17,8 +17,10 @@ STREAMS = {
     "names/\u00fcnic\u00f8de \u2713": "payload \u2713".encode(),
 }
 
-# From format 10, the index may describe the archive for people (`contents`).
-CONTENTS = {"columns": ["path", "frames", "fps", "skeleton"], "clips": [["07_01.amc", 2, 120.0, "07.asf"]]}
+# From format 10, the index may describe the archive for people (`contents`); from format 12 its
+# clips table also lists each clip's achieved errors.
+CONTENTS = {"columns": ["path", "frames", "fps", "skeleton", "mean_error_cm", "p99_error_cm", "max_error_cm"],
+            "clips": [["07_01.amc", 2, 120.0, "07.asf", 0.5, 1.25, 2.0]]}
 
 # From format 7, an index over INDEX_ATTRIBUTE_BYTES is a deflated dataset, not an attribute.
 MANY_STREAMS = {f"clips/{i:04d}": bytes([i]) * i for i in range(40)}

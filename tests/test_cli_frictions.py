@@ -293,3 +293,22 @@ def test_commands_collect_garbage_for_their_work_and_leave_it_as_it_was(tmp_path
         assert gc.get_freeze_count() >= callers > 0
     finally:
         gc.unfreeze()
+
+
+def test_an_archive_that_appears_while_compress_writes_is_refused_in_the_clis_words(shared_data, tmp_path, monkeypatch):
+    """The container refuses a target that appeared after compress checked it (issue 40); the CLI
+    says so in its own words (-f), not in the Python API's (`overwrite=True`)."""
+    from mocapzip.formats import mcz
+
+    target, write = tmp_path / "x.mcz", mcz._write_hdf5
+
+    def appearing(*args, **kwargs):
+        target.write_bytes(b"")  # another process's file, made while the archive is written
+        return write(*args, **kwargs)
+
+    monkeypatch.setattr(mcz, "_write_hdf5", appearing)
+    result = run("compress", shared_data / "cmu/09/09_01.amc", "--asf", shared_data / "cmu/09/09.asf", "--lossless",
+                 "-o", target)
+    assert result.exit_code == 1
+    assert result.stderr == f"mcz: error: {target}: already exists (use -f/--force to overwrite)\n"
+    assert target.read_bytes() == b""

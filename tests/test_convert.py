@@ -21,7 +21,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.motion.bvh_skeleton import bvh_skeleton
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
-from reference_decoder.geometry import Skeleton, euler
+from reference_decoder.geometry import Skeleton, asf_lines, euler
 from test_bvh_pipeline import file_positions
 
 AMC_CLIPS = [("cmu/09/09.asf", "cmu/09/09_01.amc", 120.0),  # CMU: length 0.45 (inches / 0.45), 120 fps stated nowhere
@@ -42,9 +42,9 @@ def reference_positions(asf: Path, amc: Path) -> tuple[list[str], np.ndarray]:
     AMC lines and Acclaim kinematics (R_j = C_j^T M_j C_j R_parent, T_j = T_parent + V_j R_j) here."""
     sk = Skeleton(asf.read_bytes().decode("latin-1"), False)
     frames: list[dict[str, list[float]]] = []
-    for line in amc.read_text(encoding="latin-1").splitlines():
+    for line in asf_lines(amc.read_bytes().decode("latin-1")):  # decoded as the ASF (§5): names may be UTF-8
         words = line.split()
-        if not words or words[0][0] in "#:":
+        if words[0][0] == ":":
             continue
         if len(words) == 1 and words[0].isdigit():
             frames.append({})
@@ -181,8 +181,21 @@ def test_names_with_dots_keep_them_and_two_clips_never_share_a_file(shared_data,
     assert not (tmp_path / "out2").exists()
 
 
-def test_a_joint_named_root_that_is_not_the_root_is_refused(shared_data, tmp_path):
+def test_a_joint_named_root_that_is_not_the_root_is_escaped_and_named_again_on_the_way_back(shared_data, tmp_path):
     text = (shared_data / BVH_CLIPS[0]).read_bytes().replace(b"JOINT abdomen", b"JOINT root", 1)
     (tmp_path / "x.bvh").write_bytes(text)
-    result = CliRunner().invoke(main, ["convert", str(tmp_path / "x.bvh"), "-o", str(tmp_path / "out")])
-    assert result.exit_code == 1 and "a joint named 'root' that is not the root" in result.stderr
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "x.bvh"), "-o", str(tmp_path / "amc")])
+    assert result.exit_code == 0, result.output
+    skeleton = read_asf(tmp_path / "amc" / "x.asf")  # ASF keeps `root` for its root (docs/bvh.md, "Names")
+    assert "%72oot" in [b.name for b in skeleton.bones] and "root" not in [b.name for b in skeleton.bones]
+    assert {'bvh-name root "hip"', 'bvh-name %72oot "root"'} <= set(skeleton.documentation)
+    source = read_bvh(tmp_path / "x.bvh")
+    names, got = reference_positions(tmp_path / "amc" / "x.asf", tmp_path / "amc" / "x.amc")
+    expected = file_positions(source)
+    for j, point in enumerate(bvh_skeleton(source.joints, None).model.points):
+        assert np.abs(got[:, j] - expected[point]).max() < TOLERANCE_CM, point
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "amc"), "-o", str(tmp_path / "bvh")])
+    assert result.exit_code == 0, result.output
+    back = read_bvh(tmp_path / "bvh" / "x.bvh")
+    assert back.joints[0].name == "hip" and "root" in [j.name for j in back.joints]
+    assert np.abs(file_positions(back)["root"] - expected["root"]).max() < TOLERANCE_CM

@@ -31,6 +31,9 @@ GOLDEN_STREAMS = {
     "names/\u00fcnic\u00f8de \u2713": "payload \u2713".encode(),
 }
 GOLDEN_CONTENTS = {"columns": ["path", "frames", "fps", "skeleton"], "clips": [["07_01.amc", 2, 120.0, "07.asf"]]}
+# Format 12's clips table also lists each clip's achieved errors.
+GOLDEN_CONTENTS_12 = {"columns": ["path", "frames", "fps", "skeleton", "mean_error_cm", "p99_error_cm", "max_error_cm"],
+                      "clips": [["07_01.amc", 2, 120.0, "07.asf", 0.5, 1.25, 2.0]]}
 
 
 # tests/golden/container_v7_index_dataset.mcz: enough streams for the index to be a dataset
@@ -91,7 +94,7 @@ def test_golden_containers_still_decode(version):
         assert (reader.format_version, reader.tool_version) == (version, f"golden-container-v{version}")
         assert reader.names() == list(GOLDEN_STREAMS)
         assert {name: reader.read(name) for name in reader.names()} == GOLDEN_STREAMS
-        assert reader.contents == (GOLDEN_CONTENTS if version >= 10 else None)
+        assert reader.contents == (GOLDEN_CONTENTS_12 if version >= 12 else GOLDEN_CONTENTS if version >= 10 else None)
 
 
 def test_read_touches_only_its_own_stream(tmp_path):

@@ -7,6 +7,7 @@ import struct
 import numpy as np
 import pytest
 
+from mocapzip.codec import tensor as tensor_codec
 from mocapzip.codec.tensor import (TensorModel, hooi, hosvd, mode_product, prediction, project, reconstruct,
                                    stored_numbers, unfold)
 
@@ -84,7 +85,7 @@ def stored_model(shape=(40, 9, 3, 2), ranks=(6, 4, 3, 2), core_step=0.01, seed=6
 
 def test_a_stored_model_decodes_to_itself_and_predicts_each_place_of_its_grid():
     tensor, model = stored_model()
-    again = TensorModel.decode(model.encode())
+    again = TensorModel.decode(model.encode(), model.shape)
     assert again.encode() == model.encode()
     for a in range(3):
         for b in range(2):
@@ -114,13 +115,14 @@ def test_a_prediction_is_carried_back_along_the_path():
 
 
 @pytest.mark.parametrize("damage", [
-    lambda b: bytes([9]) + b[1:],  # 9 natural modes: more than MAX_NATURAL_MODES
-    lambda b: bytes([3]) + b[1:],  # one more mode than the stream holds
+    lambda b: bytes([9]) + b[1:],  # 9 natural modes, where its class has 2 (and at most 8 are allowed)
+    lambda b: bytes([3]) + b[1:],  # one more mode than its class has, and than the stream holds
     lambda b: b[:-3],  # cut short
 ])
 def test_a_damaged_model_is_refused(damage):
+    model = stored_model()[1]
     with pytest.raises((ValueError, EOFError)):
-        TensorModel.decode(damage(stored_model()[1].encode()))
+        TensorModel.decode(damage(model.encode()), model.shape)
 
 
 def test_ranks_above_their_size_or_a_bad_step_are_refused_before_decoding():
@@ -128,8 +130,27 @@ def test_ranks_above_their_size_or_a_bad_step_are_refused_before_decoding():
     blob = bytearray(model.encode())
     blob[5] = 50  # r_frames (after K and the four one-byte sizes 40, 9, 3, 2): above L = 40
     with pytest.raises(ValueError, match="not a model"):
-        TensorModel.decode(bytes(blob))
+        TensorModel.decode(bytes(blob), model.shape)
     blob = bytearray(model.encode())
     blob[9:13] = struct.pack("<f", -1.0)  # the core step
     with pytest.raises(ValueError, match="not a model"):
-        TensorModel.decode(bytes(blob))
+        TensorModel.decode(bytes(blob), model.shape)
+
+
+@pytest.mark.parametrize("shape", [(41, 9, 3, 2), (40, 8, 3, 2), (40, 9, 2, 2), (40, 9, 3), (40, 9, 3, 2, 2)],
+                         ids=["frames", "pose-values", "levels", "a-mode-fewer", "a-mode-more"])
+def test_a_model_is_refused_unless_its_sizes_are_its_classs(shape):
+    """A class's frames, pose values and levels are known (meta, the class stream) before its model is decoded."""
+    _, model = stored_model()
+    with pytest.raises(ValueError, match="its class has"):
+        TensorModel.decode(model.encode(), shape)
+
+
+def test_a_model_storing_more_numbers_than_a_reader_takes_is_refused_before_decoding(monkeypatch):
+    """Each matrix within the matrix limits is not enough: together they are bounded too."""
+    _, model = stored_model()  # 9 (mean) + 6*4*3*2 (core) + 40*6 + 9*4 + 3*3 + 2*2 (factors) = 442 numbers
+    monkeypatch.setattr(tensor_codec, "MAX_TENSOR_MODEL_NUMBERS", 442)
+    assert TensorModel.decode(model.encode(), model.shape).encode() == model.encode()
+    monkeypatch.setattr(tensor_codec, "MAX_TENSOR_MODEL_NUMBERS", 441)
+    with pytest.raises(ValueError, match="a model of 442 numbers, more than the 441 a reader takes"):
+        TensorModel.decode(model.encode(), model.shape)

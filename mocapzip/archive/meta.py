@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import fastjsonschema
 import pywt
 
@@ -240,20 +241,23 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
     missing = sorted(needed - set(stream_names))
     if missing:
         raise ArchiveError(f"{missing[0]}: stream missing", archive_path)
+    unclaimed = sorted(set(stream_names) - needed)  # the spec defines no such stream: refused, not ignored
+    if unclaimed:
+        raise ArchiveError(f"{unclaimed[0]}: a stream that no part of meta claims", archive_path)
     return _output_files(meta, fail)
 
 
 def _check_tensor_classes(meta: dict, fail) -> list[str]:
     """`--model tensor`'s fields: the setting and its pattern come together, in a lossy archive
-    without segments; a tensor class's modes and levels agree; each clip of it is at one place
-    of its grid, and no other clip or segment is; return the streams they need."""
+    without segments; a tensor class's modes and levels agree; its clips fill its grid, one at
+    each place, and no other clip or segment is in it; return the streams they need."""
     settings = meta["settings"]
     tensor = settings.get("model") == "tensor"
     if ("model" in settings) != ("modes" in settings):
         raise fail("settings.modes", "model and modes come together")
     if tensor and (settings["lossless"] or settings.get("segment")):
         raise fail("settings.model", "a tensor model is lossy and never segmented")
-    needed = []
+    needed, places = [], {}  # (class, tensor_at) -> clip
     for k, row in enumerate(meta["classes"]):
         if ("model" in row) != tensor or (row.get("model") == "tensor") != ("modes" in row) or \
                 ("modes" in row) != ("levels" in row):
@@ -272,7 +276,15 @@ def _check_tensor_classes(meta: dict, fail) -> list[str]:
             if len(row["tensor_at"]) != len(class_row["modes"]) or any(
                     at >= len(levels) for at, levels in zip(row["tensor_at"], class_row["levels"])):
                 raise fail(f"clips[{i}].tensor_at", f"not a place in its class's grid of {class_row['modes']}")
+            place = (row["class"], tuple(row["tensor_at"]))
+            if places.setdefault(place, i) != i:
+                raise fail(f"clips[{i}].tensor_at", f"clip {places[place]}'s place in its class's grid")
             needed.append(f"warp/{i:05d}")
+    for k, row in enumerate(meta["classes"]):
+        filled = sum(place[0] == k for place in places)
+        if "levels" in row and filled != math.prod(map(len, row["levels"])):
+            raise fail(f"classes[{k}].levels", f"a grid of {math.prod(map(len, row['levels'])):,} places, "
+                                               f"{filled} of them with a clip: its clips fill it")
     return needed
 
 
@@ -288,7 +300,7 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
                           f"({MAX_VALUES_PER_FRAME} values per frame, {MAX_VALUES_PER_CLIP} per clip)")
     if row["first_frame"] + row["frames"] - 1 > MAX_FRAME_NUMBER:
         raise fail(f"{where}.first_frame", f"frame numbers would pass {MAX_FRAME_NUMBER}")
-    if any(b.isdigit() for b in row["bones"]):
+    if "bvh" not in row and any(b.isdigit() for b in row["bones"]):  # an AMC line; a BVH clip is written as BVH
         raise fail(f"{where}.bones", "a bone name of digits only would read back as a frame number")
     if row["skeleton"] >= n_skeletons:
         raise fail(f"{where}.skeleton", f"index {row['skeleton']} but the archive has {n_skeletons} skeletons")
@@ -325,6 +337,12 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
                 or "extra_root" in row.get("bvh", {})):
             raise fail(where, "a lossless clip has no segments, twist flips, patches, stances or extra root stream")
         return [f"clip/{i:05d}"]
+    bounded = "max_error_cm" in settings or "contact_error_cm" in settings
+    for field, on, setting in (("patched_frames", bounded, "max_error_cm or contact_error_cm"),
+                               ("planted_stances", settings.get("plant_feet"), "plant_feet"),
+                               ("repaired", settings.get("repair_glitches"), "repair_glitches")):
+        if field in row and not on:  # what the spec does not define is refused, not ignored
+            raise fail(f"{where}.{field}", f"written only with settings.{setting}, which this archive has not")
     if row.get("patched_frames", 0) > row["frames"]:
         raise fail(f"{where}.patched_frames", f"{row['patched_frames']} patched frames in a clip of {row['frames']}")
     patches = [f"patch/{i:05d}"] if "patched_frames" in row else []
@@ -406,13 +424,21 @@ def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
     return files
 
 
-CONTENTS_COLUMNS = ["path", "frames", "fps", "skeleton"]
+# The clips table's columns; format 12 added each clip's achieved joint errors, in cm.
+CONTENTS_COLUMNS = ["path", "frames", "fps", "skeleton", "mean_error_cm", "p99_error_cm", "max_error_cm"]
+_CONTENTS_COLUMNS_BEFORE_12 = CONTENTS_COLUMNS[:4]
 
 
-def contents_of(meta: dict) -> dict:
+def contents_of(meta: dict, format_version: int | None = None) -> dict:
     """What the index's `contents` holds (format 10 on): the clips table, for `h5dump -a index`
-    and anyone without mcz to read. Readers never use it; `mcz test` checks it against meta."""
+    and anyone without mcz to read. Readers never use it; `mcz test` checks it against meta.
+    `format_version`: the archive's (default: the newest), which decides the columns."""
     fps, skeletons = meta["settings"]["fps"], meta["skeletons"]
+    if format_version is not None and format_version < 12:
+        return {"columns": _CONTENTS_COLUMNS_BEFORE_12,
+                "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"]]
+                          for row in meta["clips"]]}
     return {"columns": CONTENTS_COLUMNS,
-            "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"]]
+            "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"],
+                       row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"]]
                       for row in meta["clips"]]}

@@ -305,11 +305,12 @@ class Archive:
 
     @_built_once
     def _tensor_model(self, k: int, width: int) -> TensorModel:
+        """Class k's model, its sizes checked against the class (`TensorModel.decode`): the frames of
+        its longest clip (the timeline its clips are warped to), its basis's `width`, its grid's levels."""
         name, levels = f"tensor/{k:04d}", self.meta["classes"][k]["levels"]
+        frames = max(row["frames"] for row in self.clips if row["class"] == k)  # its clips have tensor_at (meta)
         try:
-            model = TensorModel.decode(self._reader.read(name))
-            if model.factors[1].shape[0] != width or [f.shape[0] for f in model.factors[2:]] != list(map(len, levels)):
-                raise ValueError("not of its class basis's width and its grid's levels")
+            model = TensorModel.decode(self._reader.read(name), (frames, width, *map(len, levels)))
         except (ValueError, EOFError) as exc:
             raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
         return model
@@ -394,7 +395,7 @@ class Archive:
         (`mcz test`): an archive that passes decompresses, disk space and permissions aside. Also
         checks that the index's clips table (format 10 on, where written) says what meta says."""
         self.verify_checksums()
-        if self._reader.contents not in (None, contents_of(self.meta)):
+        if self._reader.contents not in (None, contents_of(self.meta, self.format_version)):
             raise ArchiveError("index: contents (the clips table) does not match meta", self.path)
         entries = list(self.files.values())
         with closing(self.made_files(entries, jobs, keep=False)) as made:

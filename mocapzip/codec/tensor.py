@@ -18,7 +18,7 @@ import numpy as np
 
 from mocapzip.codec.entropy.coefficients import check_matrix_shape, decode_matrices, encode_matrices
 from mocapzip.codec.entropy.zstd import ByteReader, write_varint
-from mocapzip.limits import MAX_NATURAL_MODES
+from mocapzip.limits import MAX_TENSOR_MODEL_NUMBERS
 from mocapzip.motion.timewarp import Warping
 
 
@@ -113,7 +113,13 @@ class TensorModel:
     @classmethod
     def quantised(cls, mean: np.ndarray, core: np.ndarray, factors: list[np.ndarray], core_step: float) -> "TensorModel":
         """The model as the archive stores it, so that the encoder predicts what the decoder will."""
-        return cls.decode(cls(mean, core, factors, float(np.float32(core_step))).encode())
+        model = cls(mean, core, factors, float(np.float32(core_step)))
+        return cls.decode(model.encode(), model.shape)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """(L, M, levels_1 .. levels_K): the class's warped tensor, which the model reduces."""
+        return tuple(factor.shape[0] for factor in self.factors)
 
     def warped(self, at: tuple[int, ...]) -> np.ndarray:
         """(L, M): the prediction of the clip at levels `at` of the natural modes, on the warped timeline.
@@ -139,27 +145,46 @@ class TensorModel:
         return bytes(header) + encode_matrices(matrices)
 
     @classmethod
-    def decode(cls, blob: bytes) -> "TensorModel":
-        """Inverse of `encode`; sizes are checked against the limits before anything is decoded."""
+    def decode(cls, blob: bytes, shape: tuple[int, ...]) -> "TensorModel":
+        """Inverse of `encode`, for a class of `shape` (`TensorModel.shape`: its longest clip's
+        frames, its basis's pose values, its grid's levels, as meta and the class stream say).
+        The blob may come from anyone: its sizes must be `shape`, and its ranks and all it stores
+        within the limits (`check_model_sizes`), before anything is decoded."""
         reader = ByteReader(bytes(blob))
         modes = reader.take(1)[0]
-        if not 1 <= modes <= MAX_NATURAL_MODES:
-            raise ValueError(f"{modes} natural modes, not 1 to {MAX_NATURAL_MODES}")
+        if modes != len(shape) - 2:
+            raise ValueError(f"{modes} natural modes, its class has {len(shape) - 2}")
         sizes = [reader.varint() for _ in range(modes + 2)]
         ranks = [reader.varint() for _ in range(modes + 2)]
         (core_step,) = struct.unpack("<f", reader.take(4))
-        if any(not 1 <= r <= n for r, n in zip(ranks, sizes)) or not (np.isfinite(core_step) and core_step > 0):
-            raise ValueError(f"ranks {ranks} for sizes {sizes}, core step {core_step}: not a model")
-        check_matrix_shape(sizes[0], sizes[1])  # the prediction it makes: bounded before it is made
-        for rows, columns in zip(sizes, ranks):  # each factor, then the core (Python ints: no overflow)
-            check_matrix_shape(rows, columns)
-        check_matrix_shape(ranks[0], math.prod(ranks[1:]))
+        if sizes != list(shape):
+            raise ValueError(f"sizes {sizes}, where its class has {list(shape)} (frames of its longest clip, "
+                             "pose values, each mode's levels)")
+        if not (np.isfinite(core_step) and core_step > 0):
+            raise ValueError(f"core step {core_step}: not a model")
+        check_model_sizes(sizes, ranks)
         shapes = [(sizes[1], 1), (ranks[0], math.prod(ranks[1:]))] + list(zip(sizes, ranks))
         mean, core, *factors = decode_matrices(reader.take(reader.remaining()), shapes)
         if len(factors) != len(sizes):
             raise ValueError(f"{len(factors) + 2} matrices in a tensor model, expected {len(sizes) + 2}")
         return cls(mean[:, 0] * MEAN_STEP_CM, core.reshape(ranks).astype(np.float64) * np.float64(core_step),
                    [factor.astype(np.float64) * FACTOR_STEP for factor in factors], float(core_step))
+
+
+def check_model_sizes(sizes, ranks) -> None:
+    """ValueError unless a model of these sizes and ranks is one a reader takes: each rank 1 to its
+    size, each matrix it stores and the prediction it makes (L x M) within the matrix limits, and
+    all it stores within MAX_TENSOR_MODEL_NUMBERS (Python ints: no overflow)."""
+    if any(not 1 <= r <= n for r, n in zip(ranks, sizes)):
+        raise ValueError(f"ranks {ranks} for sizes {sizes}: not a model")
+    check_matrix_shape(sizes[0], sizes[1])  # the prediction it makes: bounded before it is made
+    for rows, columns in zip(sizes, ranks):  # each factor, then the core
+        check_matrix_shape(rows, columns)
+    check_matrix_shape(ranks[0], math.prod(ranks[1:]))
+    numbers = sizes[1] + stored_numbers(sizes, ranks)  # the mean, the core and the factors
+    if numbers > MAX_TENSOR_MODEL_NUMBERS:
+        raise ValueError(f"a model of {numbers:,} numbers, more than the "
+                         f"{MAX_TENSOR_MODEL_NUMBERS:,} a reader takes")
 
 
 def prediction(model: TensorModel, at: tuple[int, ...], path: np.ndarray) -> np.ndarray:

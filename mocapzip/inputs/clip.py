@@ -221,6 +221,7 @@ class ClipReader:
         self._skeletons: dict = {}  # skeleton path -> (skeleton, model): small, read once
         self._hierarchy_texts: dict = {}  # BVH path -> (its hierarchy text, encoding)
         self._hierarchies: dict = {}  # (BVH hierarchy text, encoding) -> BvhSkeleton: one per skeleton
+        self._unmodelled: dict = {}  # hierarchy key of a BvhSkeleton for lossless coding alone -> why it has no model
         self._glitches: dict[ClipSource, list[Glitch]] = {}  # found once per clip, however often it is read
         self._kept: dict[ClipSource, LoadedClip] = {}
         self._kept_bytes = 0
@@ -281,6 +282,9 @@ class ClipReader:
         if not isinstance(skeleton, BvhSkeleton):
             motion = read_amc(source.amc, skeleton, partial_last_frame="error" if lossless else "drop")
             return SourceMotion(skeleton, model, motion, None)
+        why_no_model = self._unmodelled.get(self.hierarchy_text(source.asf))
+        if why_no_model is not None and not lossless:  # its joints need the model it could not have
+            raise why_no_model
         bvh = read_bvh(source.amc)
         if split_header(bvh.header)[0] != self.hierarchy_text(source.asf)[0]:
             raise MocapFormatError("its hierarchy is not the one read before (the file changed?)", source.amc)
@@ -297,10 +301,11 @@ class ClipReader:
                     joints = parse_hierarchy(key[0], path)
                     try:
                         self._hierarchies[key] = bvh_skeleton(joints, self.units, path)
-                    except MocapFormatError:
+                    except MocapFormatError as exc:
                         if self.representation_name is not None:
                             raise
                         self._hierarchies[key] = unmodelled(joints, self.units, path)  # lossless keeps the values
+                        self._unmodelled[key] = exc
                 skeleton = self._hierarchies[key]
                 self._skeletons[path] = (skeleton, skeleton.model)
             else:

@@ -13,8 +13,10 @@ exactly as without the model, which can cost bytes but never error.
 The model pays only if its bytes and the paths' are less than what it saves the clips. Each
 class is coded without it and with it at a few ranks (`RANKS`); the smallest wins, and a
 class where plain PCA wins is stored as one (`mcz info` shows which). So does a class whose
-tensor would hold more than MAX_TENSOR_VALUES values, or whose clips no warping path aligns. A
-tensor class is coded in one process, all its clips in memory at once.
+tensor would hold more than MAX_TENSOR_VALUES values, or whose clips no warping path aligns; a
+choice of ranks whose model would store more than a reader takes (`check_model_sizes`: a long
+class at 1/8 of its frames) is not tried. A tensor class is coded in one process, all its clips
+in memory at once.
 """
 
 from __future__ import annotations
@@ -25,9 +27,8 @@ from functools import cached_property
 
 import numpy as np
 
-from mocapzip.codec.entropy.coefficients import check_matrix_shape
 from mocapzip.codec.entropy.zstd import encode_bytes
-from mocapzip.codec.tensor import TensorModel, hooi, prediction
+from mocapzip.codec.tensor import TensorModel, check_model_sizes, hooi, prediction
 from mocapzip.inputs.clip import LoadedClip
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.physics import physics_features
@@ -135,8 +136,7 @@ def _pays(tensor_bytes: int, best_bytes: int) -> bool:
 def _storable(shape, ranks) -> bool:
     """Whether a model of these ranks is within what a reader takes (`TensorModel.decode`)."""
     try:
-        for rows, columns in [*zip(shape, ranks), (ranks[0], math.prod(ranks[1:])), shape[:2]]:
-            check_matrix_shape(rows, columns)
+        check_model_sizes(list(shape), list(ranks))
     except ValueError:
         return False
     return True

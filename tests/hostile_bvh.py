@@ -1,0 +1,202 @@
+"""BVH files built from parts, for tests/test_hardening_bvh.py: hierarchy shapes, channel layouts,
+frame counts and times, numbers, line ends, encodings and joint names, each at and beyond its limits.
+
+`bvh_text` writes a file from a `Shape`; `REFUSED` holds the files mcz must refuse (one line
+naming the file, the line where there is one, and the problem) and `ACCEPTED` those it must take
+and give back (the same bytes with --lossless). Synthetic on purpose: each varies one thing from
+a small valid file, which real clips cannot do; the real files' round trips are tests/test_bvh*.py.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+
+import numpy as np
+
+ROTATIONS = "Zrotation Xrotation Yrotation"
+POSITIONS = "Xposition Yposition Zposition"
+
+
+@dataclass
+class Joint:
+    name: str
+    channels: str = ROTATIONS  # "" writes no CHANNELS line
+    children: list[Joint] = field(default_factory=list)
+    offset: str = "0 20 0"
+
+
+@dataclass
+class Shape:
+    """A whole file: `root` (its channels are the root's), `frames` lines of random values (or of
+    `value`), `Frames:` saying `stated` (default: the lines), `Frame Time:` `frame_time`."""
+    root: Joint
+    frames: int = 3
+    stated: int | str | None = None
+    frame_time: str = "0.033333"
+    line_end: str = "\n"
+    value: str | None = None
+    seed: int = 1
+
+
+def chain(names: list[str], channels: str = ROTATIONS) -> list[Joint]:
+    """Joints each the child of the one before: the list's first is the top."""
+    top = None
+    for name in reversed(names):
+        top = Joint(name, channels, [top] if top else [])
+    return [top] if top else []
+
+
+def person(*joints: Joint, root_channels: str = f"{POSITIONS} {ROTATIONS}") -> Joint:
+    return Joint("Hips", root_channels, list(joints) or chain(["Spine", "Head"]), offset="0 0 0")
+
+
+def width(joint: Joint) -> int:
+    return len(joint.channels.split()) + sum(width(child) for child in joint.children)
+
+
+def _joint_lines(joint: Joint, depth: int, keyword: str) -> list[str]:
+    pad = "  " * depth
+    lines = [f"{pad}{keyword} {joint.name}".rstrip(), f"{pad}{{", f"{pad}  OFFSET {joint.offset}"]
+    if joint.channels is not None:
+        count = len(joint.channels.split())
+        lines.append(f"{pad}  CHANNELS {count} {joint.channels}".rstrip())
+    for child in joint.children:
+        lines += _joint_lines(child, depth + 1, "JOINT")
+    if not joint.children:
+        lines += [f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET 0 20 0", f"{pad}  }}"]
+    return lines + [f"{pad}}}"]
+
+
+def bvh_text(shape: Shape) -> str:
+    rng = random.Random(shape.seed)
+    lines = ["HIERARCHY", *_joint_lines(shape.root, 0, "ROOT"), "MOTION",
+             f"Frames: {shape.frames if shape.stated is None else shape.stated}", f"Frame Time: {shape.frame_time}"]
+    n = width(shape.root)
+    columns = [(rng.uniform(-40, 40), rng.uniform(0, 6.3)) for _ in range(n)]  # smooth, as motion is
+    for f in range(shape.frames):
+        lines.append(" ".join(shape.value or f"{amplitude * np.sin(0.1 * f + phase):.4f}" for amplitude, phase in columns))
+    return shape.line_end.join(lines) + shape.line_end
+
+
+def motion_line(shape: Shape) -> int:
+    """The line number of MOTION in `bvh_text(shape)` (Frames: is the next one)."""
+    return bvh_text(shape).split(shape.line_end).index("MOTION") + 1
+
+
+def wide(n: int) -> Joint:
+    """A root with `n` children: a hierarchy's joint count at and past its limit."""
+    return person(*(Joint(f"k{i}") for i in range(n)))
+
+
+@dataclass
+class Refused:
+    name: str
+    text: str | bytes
+    problem: str  # a phrase of the message
+    line: int | None = None
+
+
+BASE = Shape(person())
+_MOTION = motion_line(BASE)
+_SPINE_LINE = 6  # "  JOINT Spine" in bvh_text(BASE)
+
+
+def _base_with(old: str, new: str, count: int = 1) -> str:
+    text = bvh_text(BASE)
+    assert old in text, old
+    return text.replace(old, new, count)
+
+
+REFUSED = [
+    Refused("no_frames", bvh_text(Shape(person(), frames=0)), "no frames: Frames: 0", _MOTION + 1),
+    Refused("frames_more_than_lines", bvh_text(Shape(person(), stated=4)), "Frames: says 4, but 3 frame lines follow",
+            _MOTION + 1),
+    Refused("frames_fewer_than_lines", bvh_text(Shape(person(), stated=2)), "Frames: says 2, but 3 frame lines follow",
+            _MOTION + 1),
+    Refused("frames_past_the_limit", bvh_text(Shape(person(), stated=10**12)), "Frames: must be a count up to",
+            _MOTION + 1),
+    Refused("frames_past_the_values_limit", bvh_text(Shape(person(), stated=1 << 20)), "a clip may hold", _MOTION + 1),
+    Refused("frames_negative", bvh_text(Shape(person(), stated=-1)), "Frames: must be a count", _MOTION + 1),
+    Refused("frames_not_a_count", bvh_text(Shape(person(), stated="3.0")), "Frames: must be a count", _MOTION + 1),
+    Refused("frame_time_zero", bvh_text(Shape(person(), frame_time="0")), "Frame Time must be from", _MOTION + 2),
+    Refused("frame_time_tiny", bvh_text(Shape(person(), frame_time="1e-300")), "Frame Time must be from", _MOTION + 2),
+    Refused("frame_time_negative", bvh_text(Shape(person(), frame_time="-0.03")), "Frame Time must be from",
+            _MOTION + 2),
+    Refused("frame_time_nan", bvh_text(Shape(person(), frame_time="nan")), "Frame Time is not finite", _MOTION + 2),
+    Refused("frame_time_word", bvh_text(Shape(person(), frame_time="fast")), "not a number: 'fast'", _MOTION + 2),
+    Refused("value_1e308", bvh_text(Shape(person(), value="1e308")), "value 1e308 is out of range", _MOTION + 3),
+    Refused("value_nan", bvh_text(Shape(person(), value="nan")), "value is not finite: 'nan'", _MOTION + 3),
+    Refused("value_inf", bvh_text(Shape(person(), value="-inf")), "value is not finite: '-inf'", _MOTION + 3),
+    Refused("value_hex", bvh_text(Shape(person(), value="0x10")), "0x10", _MOTION + 3),
+    Refused("channels_zero", _base_with("CHANNELS 3 Zrotation Xrotation Yrotation", "CHANNELS 0"),
+            "CHANNELS count must be 1 to 6", _SPINE_LINE + 3),
+    Refused("channels_seven", _base_with("CHANNELS 6", "CHANNELS 7"), "CHANNELS count must be 1 to 6", 5),
+    Refused("channels_say_more", _base_with("CHANNELS 3 Z", "CHANNELS 4 Z"), "unknown channel 'JOINT'", 10),
+    Refused("channels_say_fewer", _base_with("CHANNELS 3 Z", "CHANNELS 2 Z"), "unexpected 'Yrotation'", 9),
+    Refused("channel_unknown", _base_with("Zrotation", "Wrotation"), "unknown channel 'Wrotation'", 5),
+    Refused("channel_twice", _base_with("CHANNELS 3 Zrotation Xrotation Yrotation", "CHANNELS 3 Zrotation Zrotation "
+                                        "Yrotation"), "names a channel twice", 9),
+    Refused("joint_twice", bvh_text(Shape(person(Joint("A"), Joint("A")))), "joint 'A' appears twice", 15),
+    Refused("joint_without_name", _base_with("JOINT Spine", "JOINT"), "a joint needs a name", 7),
+    Refused("joint_named_brace", _base_with("JOINT Spine", "JOINT {"), "a joint needs a name", _SPINE_LINE),
+    Refused("joint_name_with_a_space", _base_with("JOINT Spine", "JOINT Sp ine"), "expected '{', got 'ine'",
+            _SPINE_LINE),
+    Refused("joints_past_the_limit", bvh_text(Shape(wide(1100), frames=1)), "more than 1024 joints"),
+    Refused("joints_too_deep", bvh_text(Shape(person(*chain([f"j{i}" for i in range(300)])), frames=1)),
+            "joints nested more than 200 deep"),
+    Refused("end_site_with_channels", _base_with("End Site\n      {\n", "End Site\n      {\n        CHANNELS 1 Xrotation\n"),
+            "expected 'OFFSET', got 'CHANNELS'", 16),
+    Refused("offset_nan", _base_with("OFFSET 0 20 0", "OFFSET nan 20 0"), "OFFSET is not finite", 8),
+    Refused("offset_1e308", _base_with("OFFSET 0 20 0", "OFFSET 1e308 20 0"), "OFFSET 1e308 is out of range", 8),
+    Refused("offset_short", _base_with("OFFSET 0 20 0", "OFFSET 0 20"), "not a number: 'CHANNELS'", 9),
+    Refused("unclosed_brace", _base_with("}\nMOTION", "MOTION"), "the hierarchy ends early"),
+    Refused("no_motion", bvh_text(BASE).split("MOTION")[0], "MOTION"),
+    Refused("no_hierarchy", "MOTION\nFrames: 1\nFrame Time: 0.03\n1 2 3\n", "expected 'HIERARCHY'", 1),
+    Refused("braces_only", "HIERARCHY\n" + "{" * 100_000 + "\nMOTION\nFrames: 1\nFrame Time: 0.03\n1\n",
+            "expected 'ROOT'", 2),
+    Refused("empty", "", ""),
+    Refused("nul_byte", _base_with("JOINT Spine", "JOINT Sp\0ine"), "binary data (NUL bytes), not a text BVH file",
+            _SPINE_LINE),
+    Refused("utf16", "\ufeff" + bvh_text(BASE), "UTF-16 text, not a text BVH file", 1),
+    Refused("trailing_text", bvh_text(BASE) + "hello world\n", "Frames: says 3, but 4 frame lines follow",
+            _MOTION + 1),
+]
+
+# Names of every class of character a BVH name (one word) can hold: digits, punctuation, a
+# section-like colon, keywords, letters of other scripts, symbols, controls, bidi marks, long.
+ODD_NAMES = ["123", ":hierarchy", ":DEGREES", "#x", "JOINT", "End", "ROOT", "OFFSET", "CHANNELS", "MOTION",
+             "Frames:", "a}b", "Spïne", "ハンド", "😀", "\u202eabc", "a\x01b", "x" * 5000, "-1e308", "nan"]
+
+ACCEPTED = {
+    "one_frame": Shape(person(), frames=1),
+    "two_frames": Shape(person(), frames=2),
+    "root_alone": Shape(Joint("Hips", f"{POSITIONS} {ROTATIONS}", offset="0 0 0")),
+    "one_rotation_channel_each": Shape(person(Joint("Spine", "Zrotation", [Joint("Head", "Xrotation Yrotation")]))),
+    "positions_on_every_joint": Shape(person(*chain(["Spine", "Head"], f"{POSITIONS} {ROTATIONS}"))),
+    "root_rotations_only": Shape(person(root_channels=ROTATIONS)),
+    "zero_offsets": Shape(person(Joint("Spine", offset="0 0 0", children=[Joint("Head", offset="0 0 0")]))),
+    "all_zero_values": Shape(person(), value="0"),
+    "crlf": Shape(person(), line_end="\r\n"),
+    "cr": Shape(person(), line_end="\r"),
+    "widest": Shape(wide(1023), frames=2),
+    **{f"name_{i:02d}": Shape(person(*chain([name, "Head"]))) for i, name in enumerate(ODD_NAMES)},
+}
+
+
+# Taken by --lossless, refused by lossy coding (one line, naming the file) for what its model cannot hold.
+LOSSY_REFUSES = {"positions_on_every_joint": "lossy coding keeps only the root's position channels",
+                 "root_rotations_only": "root joint 'Hips' needs Xposition, Yposition and Zposition",
+                 "widest": "more than a lossy archive may hold"}
+
+
+def accepted_bytes(name: str) -> bytes:
+    text = bvh_text(ACCEPTED[name])
+    return text.encode("utf-8")
+
+
+def latin1_and_bom() -> dict[str, bytes]:
+    """Encodings: Latin-1 (a name's é as one byte) and UTF-8 with a byte-order mark (which the
+    archive does not keep: docs/format.md, BVH clips, "Lossless")."""
+    shape = Shape(person(*chain(["Spéne", "Head"])))
+    return {"latin1": bvh_text(shape).encode("latin-1"), "utf8_bom": b"\xef\xbb\xbf" + bvh_text(BASE).encode()}

@@ -1,0 +1,158 @@
+"""`mcz compress --dask` at a peer that is not a Dask scheduler (issue 40): a port that never
+answers, one that answers HTTP, one whose first bytes declare an enormous message, and other
+answers that are no Dask handshake. Each run ends within mcz's connect timeout (1 s in the child)
+with one line, exit code 1 and no file. `--dask local:N` beyond what the machine can start is a
+usage error.
+
+Each peer is a thread of the test listening on 127.0.0.1. Nothing depends on how fast anything
+runs: a run that hangs meets the child's timeout (`tests/limited.py`) and fails its test.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import struct
+import threading
+from contextlib import contextmanager
+
+import msgpack
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mocapzip import cluster
+
+from limited import run_mcz
+
+SHORT_TIMEOUT = "from mocapzip import cluster; cluster.CONNECT_TIMEOUT_S = 1"
+
+
+def message(*frames: bytes, count: int | None = None, sizes: list[int] | None = None) -> bytes:
+    """A Dask message as `distributed.comm.tcp` writes it (its size, frame count, frame sizes,
+    frames), with the count or the sizes replaced where a case lies about them."""
+    prelude = struct.pack(f"Q{len(frames)}Q", len(frames) if count is None else count,
+                          *(sizes or [len(frame) for frame in frames]))
+    body = prelude + b"".join(frames)
+    return struct.pack("Q", len(body)) + body
+
+
+HANDSHAKE = msgpack.packb({"compression": None, "python": [3, 11, 7], "pickle-protocol": 5})  # a scheduler's
+
+# What each peer sends once the connection is open, and whether it then closes it (else it holds it open).
+PEERS = {
+    "silent": (b"", False),
+    "http_400": (b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\nConnection: close\r\n\r\n", True),
+    "size_of_an_exbibyte": (struct.pack("Q", 1 << 60), False),
+    "size_of_a_gibibyte": (struct.pack("Q", 1 << 30), False),  # allocatable: Dask would then wait for it
+    "size_too_small": (struct.pack("Q", 8) + bytes(8), False),
+    "frame_count_lies": (message(HANDSHAKE, count=1 << 40), False),
+    "frame_sizes_lie": (message(HANDSHAKE, sizes=[len(HANDSHAKE) + 1]), False),
+    "not_msgpack": (message(b"\xc1" * 8), False),
+    "msgpack_not_a_handshake": (message(msgpack.packb([1, 2, 3])), False),
+    "handshake_without_pickle_protocol": (message(msgpack.packb({"compression": None})), False),
+    "closes_at_once": (b"", True),
+    "closes_mid_handshake": (message(HANDSHAKE)[:20], True),
+    "trickles_forever": (None, False),  # a first message of 32 KiB, a byte every 0.1 s: never whole
+}
+
+
+@contextmanager
+def peer(answer: bytes | None, close: bool):
+    """A listener on 127.0.0.1 that sends `answer` on each connection it accepts (None: trickles a
+    message that never ends), then closes it or holds it open until the block ends. Yields its address."""
+    listener = socket.create_server(("127.0.0.1", 0))
+    held, stop = [], threading.Event()
+
+    def serve(connection: socket.socket) -> None:
+        try:
+            if answer is None:
+                connection.sendall(struct.pack("Q", 1 << 15))
+                while not stop.wait(0.1):
+                    connection.sendall(b"\x00")
+            else:
+                connection.sendall(answer)
+        except OSError:  # mcz gave up and closed its end
+            pass
+        if close:
+            connection.close()
+
+    def accept() -> None:
+        while not stop.is_set():
+            try:
+                connection, _ = listener.accept()
+            except OSError:  # the listener closed at the end of the block
+                return
+            held.append(connection)
+            threading.Thread(target=serve, args=(connection,), daemon=True).start()
+
+    thread = threading.Thread(target=accept, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+    finally:
+        stop.set()
+        listener.shutdown(socket.SHUT_RDWR)  # wakes the thread in accept(), which close() alone does not
+        listener.close()
+        for connection in held:
+            connection.close()
+        thread.join()
+
+
+@pytest.mark.parametrize("case", PEERS)
+def test_a_peer_that_is_not_a_scheduler_ends_the_run_in_one_line(shared_data, tmp_path, case):
+    """Dask's connect waits for the handshake without a deadline and allocates the size its first
+    8 bytes declare: a silent port hung the run, an HTTP answer asked for 3 EiB. mcz checks the
+    handshake first, with a deadline: one line, exit code 1, nothing written."""
+    out = tmp_path / "out"
+    out.mkdir()
+    with peer(*PEERS[case]) as address:
+        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q",
+                      setup=SHORT_TIMEOUT)
+    assert run.returncode == 1, run.stderr
+    assert run.stderr.startswith(f"mcz: error: --dask {address}: not a Dask scheduler ("), run.stderr
+    assert len(run.stderr.splitlines()) == 1 and "Traceback" not in run.stderr, run.stderr
+    assert run.stderr.rstrip().endswith("; no partial file was left behind")
+    assert list(out.iterdir()) == []
+
+
+def test_a_scheduler_handshake_as_dask_writes_it_passes():
+    """The check reads what Dask writes: a real handshake's message is taken, with its dict."""
+    assert cluster._handshake(message(HANDSHAKE)[8:])["pickle-protocol"] == 5
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(
+    st.binary(min_size=16, max_size=200),  # any answer of a handshake's size
+    st.binary(max_size=64).map(lambda frame: message(frame)[8:]),  # a message's layout, any first frame
+    st.builds(lambda count, sizes, body: struct.pack(f"Q{len(sizes)}Q", count, *sizes) + body,  # a message's
+              st.integers(0, 2**64 - 1), st.lists(st.integers(0, 2**64 - 1), min_size=1, max_size=4),  # layout
+              st.binary(max_size=64)),  # whose count and sizes lie
+))
+def test_any_answer_is_a_handshake_or_a_value_error(answer):
+    """Whatever the peer's message holds, the check gives a handshake or says what is wrong
+    (`ValueError`, which `_check_handshake` makes one line): never another exception."""
+    try:
+        assert isinstance(cluster._handshake(answer), dict)
+    except ValueError:
+        pass
+
+
+def test_local_workers_are_capped():
+    """`local:N` starts N worker processes: N beyond a few per core would not start (`local:100000`
+    hung with no output)."""
+    most = cluster.LOCAL_WORKERS_PER_CORE * os.cpu_count()
+    assert cluster.parse_address(f"local:{most}") == (most, None)
+    with pytest.raises(cluster.ClusterError, match=f"from 1 to {most} "):
+        cluster.parse_address(f"local:{most + 1}")
+
+
+@pytest.mark.parametrize("address", ["local:100000", "local:0", "tcp://a b"])
+def test_a_malformed_dask_address_is_a_usage_error(shared_data, tmp_path, address):
+    """Refused before any work, as click refuses a bad option value: exit code 2, one error line."""
+    run = run_mcz("compress", shared_data / "cmu" / "07", "-o", tmp_path / "db.mcz", "--dask", address)
+    assert run.returncode == 2, run.stderr
+    errors = [line for line in run.stderr.splitlines() if line.startswith("Error:")]
+    assert errors and errors[0].startswith("Error: Invalid value for '--dask': "), run.stderr
+    assert len(errors) == 1 and "Traceback" not in run.stderr
+    assert list(tmp_path.iterdir()) == []
