@@ -427,6 +427,9 @@ def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
 # The clips table's columns; format 12 added each clip's achieved joint errors, in cm.
 CONTENTS_COLUMNS = ["path", "frames", "fps", "skeleton", "mean_error_cm", "p99_error_cm", "max_error_cm"]
 _CONTENTS_COLUMNS_BEFORE_12 = CONTENTS_COLUMNS[:4]
+# Errors to 10 micrometres: enough to read, and the shared CMU archive's index is 550 bytes (0.2 %)
+# smaller than with meta's digits (measured: 3,731 against 4,279 bytes deflated). Meta keeps them all.
+CONTENTS_ERROR_DECIMALS = 3
 
 
 def contents_of(meta: dict, format_version: int | None = None) -> dict:
@@ -440,5 +443,6 @@ def contents_of(meta: dict, format_version: int | None = None) -> dict:
                           for row in meta["clips"]]}
     return {"columns": CONTENTS_COLUMNS,
             "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"],
-                       row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"]]
+                       *(None if error is None else round(error, CONTENTS_ERROR_DECIMALS)
+                         for error in (row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"]))]
                       for row in meta["clips"]]}
