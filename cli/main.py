@@ -136,12 +136,15 @@ def _repairs(repaired: list) -> str:
             f"{max(r['error_cm'] for r in repaired):.1f} cm from the source (`mcz info` lists them)")
 
 
-def _not_stdout(ctx, param, value):
-    """Refuse `-o -`: zstd streams to stdout, but an .mcz is an HDF5 file, written by seeking."""
+def _named_output(ctx, param, value):
+    """Refuse `-o -`: zstd streams to stdout, but an .mcz is an HDF5 file, written by seeking; and
+    `-o ''`, which names nothing (a folder's files would go to the current folder)."""
+    what = "file" if param.type.file_okay else "folder"
     if value == "-":
-        what = "file" if param.type.file_okay else "folder"
         raise click.BadParameter(f"writing to stdout is not supported (an .mcz archive is an HDF5 file); "
                                  f"name a {what}", ctx, param)
+    if value == "":
+        raise click.BadParameter(f"an empty name names no {what}; name one", ctx, param)
     return value
 
 
@@ -172,7 +175,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 
 @main.command()
 @click.argument("inputs", nargs=-1, required=True, type=click.Path())
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), callback=_not_stdout,
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), callback=_named_output,
               help="The .mcz archive to write (a file: not stdout, `-o -` is refused).")
 @click.option("-e", "--error", "error_cm", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True,
               help="Bound on each clip's mean joint-position error in cm, measured end to end.")
@@ -353,7 +356,7 @@ def _parse_split(text):
 
 @main.command()
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_not_stdout,
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_named_output,
               help="Folder for the ASF/AMC and BVH files (not stdout: `-o -` is refused).")
 @click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
 @click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
@@ -487,7 +490,7 @@ def test_archive(archive_path, jobs, quiet):
 
 @main.command()
 @click.argument("inputs", nargs=-1, required=True, type=click.Path())
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_not_stdout,
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_named_output,
               help="Folder for the converted files, at the inputs' relative paths.")
 @click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: as compress pairs them).")
 @click.option("--units", type=click.Choice(UNITS), default=None,

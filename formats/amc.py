@@ -55,6 +55,7 @@ from mocapzip.formats.text import (
     number,
     open_regular_file,
     stated_frame_rate,
+    whole_number,
 )
 from mocapzip.formats.amc_compiled import (
     LAYOUT_OK,
@@ -431,11 +432,11 @@ def _parse_exact(data: bytes, path, encoding, skeleton=None, partial_last_frame:
             continue
         if len(words) == 1 and _is_frame_line(words[0]):
             close_frame(lineno)
-            if len(words[0].lstrip(b"0")) > len(str(MAX_FRAME_NUMBER)) or int(words[0]) > MAX_FRAME_NUMBER:
+            number_ = whole_number(words[0], MAX_FRAME_NUMBER)
+            if number_ is None:
                 raise MocapFormatError(
                     f"frame number {_show(words[0])[1:-1]} is out of range (> {MAX_FRAME_NUMBER})", path, lineno
                 )
-            number_ = int(words[0])
             if frame_numbers:
                 previous = frame_numbers[-1]
                 if number_ == previous:

@@ -7,11 +7,13 @@ position channels on the root (CMU's conversion, mixed CRLF/LF line ends), or 6 
 joint and an extra root above the hips (Bandai Namco's game-studio export), any rotation order.
 
 Strict: every fault raises MocapFormatError naming file and line (a brace missing, a channel
-name that is no channel, a frame line with too few values, `Frames:` 0 or disagreeing with the lines,
-a number that is no finite number). Exact: a file read and written back is the same bytes. A
-Bvh read from a file keeps its text as read (`header`, `frames_text`) and its values read-only;
-to write other values, make a new one (`dataclasses.replace(bvh, values=..., frames_text=None)`):
-they are written in the number style the file used (`BvhStyle`, found on a sample of its frames).
+name that is no channel, CHANNELS after a child joint, a frame line with too few values, `Frames:` 0
+or disagreeing with the lines, a number that is no finite number, a CR CR LF among the MOTION lines
+and frames). Keywords, channel names and MOTION are ASCII words in any case. Exact: a file read
+and written back is the same bytes. A Bvh read from a file keeps its text as read (`header`,
+`frames_text`) and its values read-only; to write other values, make a new one
+(`dataclasses.replace(bvh, values=..., frames_text=None)`): they are written in the number style
+the file used (`BvhStyle`, found on a sample of its frames).
 """
 
 from __future__ import annotations
@@ -26,13 +28,14 @@ import numpy as np
 from mocapzip.formats.amc_compiled import format_rows, scan_lines, with_numbers
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, check_text, detect_encoding, number,
-                                   open_regular_file, read_regular_file)
+                                   open_regular_file, read_regular_file, split_lines, whole_number)
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP
 
 CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 _CHANNEL_NAMES = {name.lower(): name for name in CHANNELS}
 MAX_HIERARCHY_CHARS = 1 << 20  # the text before MOTION: a 1,024-joint skeleton takes about 200 KB
 MAX_HIERARCHY_DEPTH = 200  # joints within joints (a human: about 10; each level is a Python call)
+MAX_MOTION_CHARS = 4096  # the lines MOTION, Frames: and Frame Time: together, as an archive keeps them (a clip's)
 _WHAT = "a text BVH file"  # what `check_text` says the file should have been
 # tried in this order (`_style_of`)
 NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17", "f6", "f3", "f4", "f5", "f7", "f8", "f9")
@@ -41,7 +44,9 @@ NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17", "f6", "f3"
 @dataclass(frozen=True, eq=False)
 class BvhJoint:
     """One joint: its parent (an index into `Bvh.joints`, -1 for a root), offset from that
-    parent in the file's units, channels in file order, and its End Site's offset, if any."""
+    parent in the file's units, channels in file order, and its End Site's offset, if any.
+    Channel names are spelt as CHANNELS, whatever case the file used (its text keeps that case),
+    so every reader of them agrees."""
 
     name: str
     parent: int
@@ -146,6 +151,7 @@ def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
     if n_frames * max(width, 1) > MAX_VALUES_PER_CLIP:
         raise MocapFormatError(f"{n_frames} frames of {width} values are more than the {MAX_VALUES_PER_CLIP:,} "
                                "a clip may hold", path, first_line - 2)
+    parser.check_line_ends(first_line + n_frames - 2)  # after the last frame's line, blank lines may follow
     frames_text = text[header_end:]
     frames = data[len(text[:header_end].encode(encoding)) :]
     values, lines = _frame_values(frames, frames_text, n_frames, width, path, first_line)
@@ -160,14 +166,17 @@ def read_hierarchy(path: str | os.PathLike) -> tuple[str, str]:
     further than its MOTION line, nor past what a hierarchy may take (MAX_HIERARCHY_CHARS);
     MocapFormatError if it has none. Only a header can hold letters, so its encoding is the file's."""
     head = bytearray()
+    line_start, motion = 0, None  # where the last line read starts: the next chunk may go on with it
     with open_regular_file(path) as file:
-        while len(head) <= 4 * MAX_HIERARCHY_CHARS:  # 4: the most bytes a UTF-8 character takes
+        while motion is None and len(head) <= 4 * MAX_HIERARCHY_CHARS:  # 4: the most bytes of a UTF-8 character
             chunk = file.read(1 << 16)
-            start = max(0, len(head) - 64)  # a MOTION line may begin in the previous chunk
             head += chunk
-            motion = _MOTION_BYTES.search(head, start)
-            if motion or not chunk:
+            motion = _MOTION_BYTES.search(head, line_start)
+            if motion and chunk and motion.end() == len(head) and head[-1:] not in b"\r\n":
+                motion = None  # `MOTION` at the end of what was read: its line may go on
+            if not chunk:
                 break
+            line_start = max(line_start, head.rfind(b"\n", line_start) + 1, head.rfind(b"\r", line_start) + 1)
     head = bytes(head)
     if motion is None:
         check_text(head, os.fspath(path), _WHAT)  # empty, UTF-16 or binary: say so rather than "no MOTION"
@@ -178,28 +187,35 @@ def read_hierarchy(path: str | os.PathLike) -> tuple[str, str]:
     return hierarchy.decode(encoding), encoding
 
 
-_MOTION_TEXT = re.compile(r"(?:\A|(?<=[\r\n]))[ \t\f\v]*MOTION[ \t\f\v]*(?:\r|\n|\Z)", re.IGNORECASE)
-_MOTION_BYTES = re.compile(rb"(?:\A|(?<=[\r\n]))[ \t\f\v]*MOTION[ \t\f\v]*(?:\r|\n|$)", re.IGNORECASE)
+# The one rule for the MOTION line, on text and on bytes: the ASCII word in any case, blanks (spaces
+# and tabs) around it, alone on its line (`str.upper` would take `MOTıON`, `str.strip` a no-break space).
+_BLANKS = " \t"
+_MOTION_LINE = rf"[{_BLANKS}]*MOTION[{_BLANKS}]*"
+_MOTION_WORD = re.compile(_MOTION_LINE, re.IGNORECASE | re.ASCII)
+_MOTION_TEXT = re.compile(rf"(?:\A|(?<=[\r\n])){_MOTION_LINE}(?:\r|\n|\Z)", re.IGNORECASE | re.ASCII)
+# (on a file's bytes: after a UTF-8 byte-order mark too, which `check_text` takes off the text)
+_MOTION_BYTES = re.compile(rb"(?:\A(?:\xef\xbb\xbf)?|(?<=[\r\n]))" + _MOTION_LINE.encode() + rb"(?:\r|\n|\Z)",
+                           re.IGNORECASE)
 
 
 def split_header(header: str) -> tuple[str, str]:
     """(hierarchy, motion lines) of a BVH header: the text before its MOTION line, and the rest.
     An archive keeps the first once per skeleton and the second per clip."""
-    start = 0
-    for line in _lines_with_ends(header, len(header) + 1):
-        if line.strip().upper() == "MOTION":  # as `_Parser` finds it
-            return header[:start], header[start:]
-        start += len(line)
-    raise ValueError("no MOTION line in the header")
+    motion = _MOTION_TEXT.search(header)  # as `_Parser` finds it
+    if motion is None:
+        raise ValueError("no MOTION line in the header")
+    return header[: motion.start()], header[motion.start() :]
 
 
 def motion_lines_problem(text: str, frames: int) -> str | None:
     """What is wrong with `text` as a clip's MOTION lines (`split_header`'s second part) for
     `frames` frames, as `parse_bvh` reads them; None if nothing (archives check what they keep)."""
+    if len(text) > MAX_MOTION_CHARS:
+        return f"longer than {MAX_MOTION_CHARS:,} characters"
     lines = _lines_with_ends(text, 4)
     if len(lines) != 3 or not all(line.endswith(("\n", "\r")) for line in lines):
         return "not three lines, each with its line end"
-    if lines[0].strip().upper() != "MOTION":
+    if not _MOTION_WORD.fullmatch(lines[0].rstrip("\r\n")):
         return "not the lines MOTION, Frames: and Frame Time:"
     try:
         count, _ = _motion_numbers(lines[1:], 2, None)
@@ -215,12 +231,13 @@ def _motion_numbers(lines: list[str], first_line: int, path: str | None) -> tupl
     for offset, key in enumerate(("frames:", "frame time:")):
         if offset >= len(lines):
             raise MocapFormatError(f"MOTION needs a '{key.capitalize()}' line", path, first_line + offset - 1)
-        line = lines[offset].strip()
+        line = lines[offset].rstrip("\r\n").strip(_BLANKS)
         if not line.lower().startswith(key):
             raise MocapFormatError(f"expected '{key.capitalize()} ...', got {line[:40]!r}", path, first_line + offset)
-        words.append(line[len(key):].strip())
+        words.append(line[len(key):].strip(_BLANKS))
     count, seconds = words
-    if not (count.isascii() and count.isdigit()) or int(count) > MAX_FRAMES_PER_CLIP:
+    frames = whole_number(count, MAX_FRAMES_PER_CLIP)
+    if frames is None:
         raise MocapFormatError(f"Frames: must be a count up to {MAX_FRAMES_PER_CLIP:,}, got {count[:30]!r}", path,
                                first_line)
     frame_time = number(seconds, path, first_line + 1, what="Frame Time")
@@ -228,7 +245,7 @@ def _motion_numbers(lines: list[str], first_line: int, path: str | None) -> tupl
         raise MocapFormatError(f"Frame Time must be from {1 / MAX_FRAME_RATE:g} to {1 / MIN_FRAME_RATE:g} seconds "
                                f"(a rate of {MIN_FRAME_RATE:g} to {MAX_FRAME_RATE:,.0f} fps), got {seconds[:30]!r}",
                                path, first_line + 1)
-    return int(count), frame_time
+    return frames, frame_time
 
 
 def parse_hierarchy(text: str, path: str | None = None) -> list[BvhJoint]:
@@ -247,14 +264,16 @@ def format_bvh(bvh: Bvh) -> str:
         return _canonical_header(bvh) + bvh.style.format(bvh.values)
     if bvh.frames_text is not None:
         return bvh.header + bvh.frames_text
-    header = _FRAMES.sub(lambda m: f"{m.group(1)}{bvh.n_frames}", bvh.header, count=1)
-    header = _FRAME_TIME.sub(lambda m: m.group(0) if float(m.group(2)) == bvh.frame_time
-                             else f"{m.group(1)}{bvh.frame_time!r}", header, count=1)
-    return header + bvh.style.format(bvh.values)
+    hierarchy, motion = split_header(bvh.header)
+    motion = _FRAMES.sub(lambda m: f"{m.group(1)}{bvh.n_frames}", motion, count=1)
+    motion = _FRAME_TIME.sub(lambda m: m.group(0) if float(m.group(2)) == bvh.frame_time
+                             else f"{m.group(1)}{bvh.frame_time!r}", motion, count=1)
+    return hierarchy + motion + bvh.style.format(bvh.values)
 
 
-_FRAMES = re.compile(r"^([ \t]*Frames:[ \t]*)(\d+)", re.IGNORECASE | re.MULTILINE)
-_FRAME_TIME = re.compile(r"^([ \t]*Frame Time:[ \t]*)(\S+)", re.IGNORECASE | re.MULTILINE)
+# at a line's start, after any line end (`^` with re.MULTILINE is after LF only: a CR-only file's count stayed)
+_FRAMES = re.compile(r"(?:\A|(?<=[\r\n]))([ \t]*Frames:[ \t]*)([0-9]+)", re.IGNORECASE | re.ASCII)
+_FRAME_TIME = re.compile(r"(?:\A|(?<=[\r\n]))([ \t]*Frame Time:[ \t]*)([^ \t\r\n]+)", re.IGNORECASE | re.ASCII)
 
 
 def _lines_with_ends(text: str, limit: int) -> list[str]:
@@ -291,17 +310,20 @@ class _Parser:
         self.text, self.path = text, path
         self.words: list[tuple[str, int]] = []  # (word, line) of the hierarchy
         self.position = 0
-        self.motion_line: int | None = None  # the line of MOTION
         motion = _MOTION_TEXT.search(text)  # the lines up to it, not the frames, are split
-        head = text if motion is None else text[: motion.end()]
-        if len(head) > MAX_HIERARCHY_CHARS:
+        if motion is None:
+            raise self.fail("no MOTION line: not a BVH file", None)  # as `read_hierarchy` says
+        if motion.end() > MAX_HIERARCHY_CHARS:
             raise self.fail(f"the hierarchy is longer than {MAX_HIERARCHY_CHARS:,} characters "
                             f"({MAX_BONES_PER_SKELETON:,} joints at most)", 1)
-        for line_number, line in enumerate(head.replace("\r\n", "\n").replace("\r", "\n").split("\n"), start=1):
-            if line.strip().upper() == "MOTION":
-                self.motion_line = line_number
-                break
+        lines = split_lines(text[: motion.start()])  # the last: what comes before MOTION on its line, nothing
+        for line_number, line in enumerate(lines, start=1):
             self.words += [(word, line_number) for word in line.split()]
+        self.motion_line = len(lines)
+        doubled = text.find("\r\r\n", motion.start())
+        self.doubled_line_end = None if doubled < 0 else self.motion_line + (  # the line that ends so, from MOTION on
+            text.count("\n", motion.start(), doubled) + text.count("\r", motion.start(), doubled)
+            - text.count("\r\n", motion.start(), doubled))
 
     def fail(self, message: str, line: int | None) -> MocapFormatError:
         return MocapFormatError(message, self.path, line)
@@ -312,9 +334,16 @@ class _Parser:
             raise self.fail(f"the hierarchy ends early{f', expected {expected!r}' if expected else ''}", last)
         word, line = self.words[self.position]
         self.position += 1
-        if expected is not None and word.upper() != expected.upper():
+        if expected is not None and _keyword(word) != expected.upper():
             raise self.fail(f"expected {expected!r}, got {word[:40]!r}", line)
         return word, line
+
+    def check_line_ends(self, last_line: int) -> None:
+        """MocapFormatError if a line from MOTION to `last_line` ends in CR CR LF: every reader (and
+        editor) takes that for a line end and then a blank line, which MOTION's lines cannot hold."""
+        if self.doubled_line_end is not None and self.doubled_line_end <= last_line:
+            raise self.fail("the line ends in CR CR LF (a line end, then a blank line): the MOTION lines and "
+                            "frame lines each end in one CRLF, LF or CR", self.doubled_line_end)
 
     def hierarchy(self) -> list[BvhJoint]:
         self.next("HIERARCHY")
@@ -324,8 +353,6 @@ class _Parser:
             self.joint(joints, -1)
         if not joints:
             raise self.fail("no ROOT joint", self.words[-1][1] if self.words else 1)
-        if self.motion_line is None:
-            raise self.fail("no MOTION section", self.words[-1][1])
         return joints
 
     def joint(self, joints: list[BvhJoint], parent: int, depth: int = 1) -> None:
@@ -347,19 +374,23 @@ class _Parser:
         end_site = None
         while True:
             word, line = self.next()
-            key = word.upper()
+            key = _keyword(word)
             if key == "CHANNELS":
                 if channels:
                     raise self.fail(f"joint {name!r} has a second CHANNELS line", line)
+                if len(joints) > index + 1:  # its columns would come before those of joints written before it
+                    raise self.fail(f"joint {name!r} has its CHANNELS after its child joint "
+                                    f"{joints[index + 1].name!r}: they must come before", line)
                 count_word, count_line = self.next()
-                if not (count_word.isascii() and count_word.isdigit()) or not 1 <= int(count_word) <= 6:
+                count = whole_number(count_word, 6)
+                if not count:
                     raise self.fail(f"CHANNELS count must be 1 to 6, got {count_word[:20]!r}", count_line)
-                names = [self.next() for _ in range(int(count_word))]
+                names = [self.next() for _ in range(count)]
                 bad = [(w, n) for w, n in names if w.lower() not in _CHANNEL_NAMES]
                 if bad:
                     raise self.fail(f"unknown channel {bad[0][0][:30]!r} (expected {', '.join(CHANNELS)})", bad[0][1])
-                channels = tuple(w for w, _ in names)
-                if len({c.lower() for c in channels}) != len(channels):
+                channels = tuple(_CHANNEL_NAMES[w.lower()] for w, _ in names)
+                if len(set(channels)) != len(channels):
                     raise self.fail(f"joint {name!r} names a channel twice", line)
                 joints[index] = BvhJoint(name, parent, offset, channels)
             elif key == "JOINT":
@@ -388,9 +419,19 @@ class _Parser:
 
     def motion_header(self) -> tuple[int, float, int, int]:
         """(frames, frame time, offset of the first frame in the text, its line)."""
+        self.check_line_ends(self.motion_line + 2)
         lines = _lines_with_ends(self.text, self.motion_line + 2)
+        ends = np.cumsum([len(line) for line in lines[self.motion_line - 1 :]])
+        if ends[-1] > MAX_MOTION_CHARS:
+            raise self.fail(f"the lines MOTION, Frames: and Frame Time: take more than the {MAX_MOTION_CHARS:,} "
+                            "characters they may", self.motion_line + int(np.argmax(ends > MAX_MOTION_CHARS)))
         frames, frame_time = _motion_numbers(lines[self.motion_line :], self.motion_line + 1, self.path)
         return frames, frame_time, sum(len(line) for line in lines), self.motion_line + 3
+
+
+def _keyword(word: str) -> str:
+    """`word` as a keyword is compared: in upper case if ASCII (`str.upper` makes `JOıNT` JOINT)."""
+    return word.upper() if word.isascii() else word
 
 
 def _frame_values(frames: bytes, frames_text: str, n_frames: int, width: int, path: str | None,

@@ -73,6 +73,17 @@ def open_regular_file(path) -> io.BufferedReader:
         raise
 
 
+def check_folders(folders) -> None:
+    """MocapFormatError naming the first of `folders`, or of the folders above them, that exists but
+    is no folder (a file, a symbolic link to nothing): no file can be written under it, and it is
+    not what -f/--force replaces. Checked before any file is written."""
+    for folder in sorted({Path(f) for f in folders}):
+        for path in (folder, *folder.parents):
+            if os.path.lexists(path) and not os.path.isdir(path):
+                kind = "a symbolic link to nothing" if os.path.islink(path) else "a file"
+                raise MocapFormatError(f"not a folder but {kind}: files cannot be written under it", path)
+
+
 def write_file_atomically(path: Path, data: bytes) -> None:
     """A new file under a random name, created exclusively (never through a link planted there),
     then renamed over `path`: an interrupted run never leaves half a file behind; an error names `path`."""
@@ -181,9 +192,24 @@ def integer(word, path: str | None, line: int | None, *, what: str = "value") ->
     raw = word.encode("latin-1", "replace") if isinstance(word, str) else bytes(word)
     if not re.fullmatch(rb"[+-]?\d+", raw):
         raise MocapFormatError(f"{what} must be an integer, got {raw[:40].decode('latin-1')!r}", path, line)
-    if len(raw.lstrip(b"+-0")) > 18:
+    magnitude = whole_number(raw.lstrip(b"+-"), 10**18 - 1)
+    if magnitude is None:
         raise MocapFormatError(f"{what} {raw[:40].decode('latin-1')} is out of range", path, line)
-    return int(raw)
+    return -magnitude if raw.startswith(b"-") else magnitude
+
+
+def whole_number(word, at_most: int) -> int | None:
+    """The value of `word` (str or bytes) when it is ASCII digits worth at most `at_most`, else None.
+    Its length is checked before int() sees it: int() raises on more than 4,300 digits (leading
+    zeros too, sys.get_int_max_str_digits), and a file's word may have any number."""
+    raw = word.encode("latin-1", "replace") if isinstance(word, str) else bytes(word)
+    if not re.fullmatch(rb"[0-9]+", raw):
+        return None
+    significant = raw.lstrip(b"0")
+    if len(significant) > len(str(at_most)):
+        return None
+    value = int(significant or b"0")
+    return value if value <= at_most else None
 
 
 MAX_FRAME_RATE = 100_000.0  # frames per second: far above any capture system, below nonsense

@@ -66,12 +66,12 @@ def parse_address(address: str) -> tuple[int | None, str | None]:
         cores = os.cpu_count() or 1
         count = address.partition(":")[2] or str(cores)
         most = LOCAL_WORKERS_PER_CORE * cores
-        if not count.isdigit() or not 1 <= int(count) <= most:
-            raise ClusterError(f"--dask {address}: expected local or local:N with N a number of workers from 1 to "
+        if not (count.isascii() and count.isdigit() and len(count) <= 9) or not 1 <= int(count) <= most:
+            raise ClusterError(f"--dask {address[:40]}: expected local or local:N with N a number of workers from 1 to "
                                f"{most} ({LOCAL_WORKERS_PER_CORE} per core of this machine's {cores})")
         return int(count), None
     if not address or any(c.isspace() for c in address):
-        raise ClusterError(f"--dask {address!r}: expected a scheduler address such as tcp://host:8786, or local:N")
+        raise ClusterError(f"--dask {address[:60]!r}: expected a scheduler address such as tcp://host:8786, or local:N")
     return None, address
 
 

@@ -3,8 +3,9 @@ frame counts and times, numbers, line ends, encodings and joint names, each at a
 
 `bvh_text` writes a file from a `Shape`; `REFUSED` holds the files mcz must refuse (one line
 naming the file, the line where there is one, and the problem) and `ACCEPTED` those it must take
-and give back (the same bytes with --lossless). Synthetic on purpose: each varies one thing from
-a small valid file, which real clips cannot do; the real files' round trips are tests/test_bvh*.py.
+and give back (the same bytes with --lossless): a `Shape`, or the text of a variation no Shape
+says. Synthetic on purpose: each varies one thing from a small valid file, which real clips
+cannot do; the real files' round trips are tests/test_bvh*.py.
 """
 
 from __future__ import annotations
@@ -108,6 +109,26 @@ def _base_with(old: str, new: str, count: int = 1) -> str:
     return text.replace(old, new, count)
 
 
+def _channels_after_the_child() -> tuple[str, int]:
+    """BASE with Spine's CHANNELS line moved after its child Head's block; and that line's number."""
+    lines = bvh_text(BASE).split("\n")
+    channels = lines.pop(_SPINE_LINE + 2)
+    close = lines.index("  }")  # Spine's closing brace
+    lines.insert(close, channels)
+    return "\n".join(lines), close + 1
+
+
+def _line_ends(hierarchy: str, motion: str, frames: str, last: str) -> str:
+    """BASE with these line ends: `hierarchy` up to MOTION, `motion` on its 3 lines, `frames` on the
+    frame lines but the last, `last` on that."""
+    lines = bvh_text(BASE).split("\n")[:-1]
+    ends = [hierarchy] * (_MOTION - 1) + [motion] * 3 + [frames] * (len(lines) - _MOTION - 3) + [last]
+    return "".join(line + end for line, end in zip(lines, ends))
+
+
+_CHANNELS_AFTER = _channels_after_the_child()
+
+
 REFUSED = [
     Refused("no_frames", bvh_text(Shape(person(), frames=0)), "no frames: Frames: 0", _MOTION + 1),
     Refused("frames_more_than_lines", bvh_text(Shape(person(), stated=4)), "Frames: says 4, but 3 frame lines follow",
@@ -161,6 +182,23 @@ REFUSED = [
     Refused("utf16", "\ufeff" + bvh_text(BASE), "UTF-16 text, not a text BVH file", 1),
     Refused("trailing_text", bvh_text(BASE) + "hello world\n", "Frames: says 3, but 4 frame lines follow",
             _MOTION + 1),
+    # a count of more digits than int() takes (4,300): a traceback in every command
+    Refused("frames_with_5000_leading_zeros", bvh_text(Shape(person(), stated="0" * 5000 + "3")),
+            "the lines MOTION, Frames: and Frame Time: take more than the 4,096 characters", _MOTION + 1),
+    # MOTION is the ASCII word alone on its line, for every command (convert took these, the others did not)
+    Refused("motion_with_a_dotless_i", _base_with("MOTION", "MOT\u0131ON"), "no MOTION line: not a BVH file"),
+    Refused("motion_after_a_no_break_space", _base_with("MOTION", "\u00a0MOTION"), "no MOTION line: not a BVH file"),
+    Refused("motion_and_a_word", _base_with("MOTION", "MOTION extra"), "no MOTION line: not a BVH file"),
+    Refused("keyword_with_a_dotless_i", _base_with("JOINT Spine", "JO\u0131NT Spine"),
+            "unexpected 'JO\u0131NT' in joint", _SPINE_LINE),  # keywords too are ASCII, any case (`str.upper`: JOINT)
+    Refused("no_hierarchy_after_a_byte_order_mark", "\ufeffMOTION\nFrames: 1\nFrame Time: 0.03\n1 2 3\n",
+            "expected 'HIERARCHY'", 1),
+    Refused("channels_after_a_child_joint", _CHANNELS_AFTER[0], "joint 'Spine' has its CHANNELS after its child joint "
+            "'Head'", _CHANNELS_AFTER[1]),
+    Refused("cr_cr_lf_line_ends", bvh_text(Shape(person(), line_end="\r\r\n")), "the line ends in CR CR LF",
+            2 * _MOTION - 1),  # each CR CR LF ends two lines, as editors count
+    Refused("cr_cr_lf_between_frames", _line_ends("\n", "\n", "\r\r\n", "\n"), "the line ends in CR CR LF",
+            _MOTION + 3),
 ]
 
 # Names of every class of character a BVH name (one word) can hold: digits, punctuation, a
@@ -181,6 +219,14 @@ ACCEPTED = {
     "cr": Shape(person(), line_end="\r"),
     "widest": Shape(wide(1023), frames=2),
     **{f"name_{i:02d}": Shape(person(*chain([name, "Head"]))) for i, name in enumerate(ODD_NAMES)},
+    # channel names and keywords in any case: the codec's model read them as the parser does
+    "channels_in_upper_case": _base_with(ROTATIONS, ROTATIONS.upper(), 3),
+    "channels_in_camel_case": _base_with("Xrotation", "XRotation", 3),
+    "all_in_upper_case": bvh_text(BASE).upper(),
+    "channels_count_with_4400_leading_zeros": _base_with("CHANNELS 3 Z", "CHANNELS " + "0" * 4400 + "3 Z"),
+    # a CR CR LF where a blank line may stand: the hierarchy, after the last frame
+    "cr_cr_lf_in_the_hierarchy": _line_ends("\r\r\n", "\r\n", "\r\n", "\r\n"),
+    "cr_cr_lf_after_the_last_frame": _line_ends("\n", "\n", "\n", "\r\r\n"),
 }
 
 
@@ -191,8 +237,8 @@ LOSSY_REFUSES = {"positions_on_every_joint": "lossy coding keeps only the root's
 
 
 def accepted_bytes(name: str) -> bytes:
-    text = bvh_text(ACCEPTED[name])
-    return text.encode("utf-8")
+    case = ACCEPTED[name]
+    return (case if isinstance(case, str) else bvh_text(case)).encode("utf-8")
 
 
 def latin1_and_bom() -> dict[str, bytes]:

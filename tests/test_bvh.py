@@ -76,7 +76,7 @@ def damaged(data, old: bytes, new: bytes, count: int = 1) -> bytes:
     (b"Frame Time:\t0.00833333", b"Frame Time:\t0", "Frame Time must be from 1e-05 to 1 seconds", 275),
     (b"Frames:\t363", "Frames:\t\u00b2".encode(), "Frames: must be a count", 274),
     (b"CHANNELS 3", "CHANNELS \u00b3".encode(), "CHANNELS count must be 1 to 6", 9),
-    (b"MOTION", b"MOTIONS", "expected 'ROOT', got 'MOTIONS'", 273),
+    (b"MOTION", b"MOTIONS", "no MOTION line: not a BVH file", None),  # as `read_hierarchy` says (inspect, compress)
     (b"End Site", b"End Sight", "expected 'Site', got 'Sight'", 26),
 ])
 def test_a_damaged_file_is_refused_naming_file_and_line(shared_data, old, new, message, line):
@@ -118,6 +118,8 @@ def test_line_ends_and_styles_a_first_frame_does_not_show(shared_data):
     bvh = parse_bvh(cr_only, "cr.bvh")
     assert format_bvh(bvh).encode() == cr_only and bvh.style.line_end == "\r"
     assert format_bvh(replace(bvh, frames_text=None)).encode() == cr_only
+    shorter = parse_bvh(format_bvh(replace(bvh, values=bvh.values[:5], frame_time=0.01, frames_text=None)).encode())
+    assert shorter.n_frames == 5 and shorter.frame_time == 0.01  # before: `Frames:` kept its count after a CR
     head, frames = text.split(b"Frame Time:\t0.00833333\r\n")
     lines = frames.split(b"\n")
     lines[0] = b" ".join([b"0"] * 132)  # a first frame %g writes as it is, and repr does not
@@ -133,6 +135,24 @@ def test_the_hierarchy_of_a_file_is_read_no_further_than_a_hierarchy_may_reach(s
     path.write_bytes(head + b"#" * (4 * MAX_HIERARCHY_CHARS + (1 << 20)) + b"\nMOTION\n")
     with pytest.raises(MocapFormatError, match=r"endless\.bvh: no MOTION line in its first [0-9,]+ bytes"):
         read_hierarchy(path)
+
+
+@pytest.mark.parametrize("motion, into, found", [("MOTION extra", 6, False), ("\t" * 100 + "MOTION", 90, True)])
+def test_a_motion_line_across_two_read_chunks_is_found_as_parse_bvh_finds_it(
+        shared_data, tmp_path, motion, into, found):
+    """`read_hierarchy` reads 64 KiB at a time; before, `MOTION` at the end of a chunk was taken for
+    the line (`MOTION extra` too), and a line of 100 tabs and `MOTION` across two chunks was missed."""
+    text = (shared_data / "cmu-bvh/10/10_03.bvh").read_bytes()
+    head, rest = text.split(b"MOTION", 1)
+    head += b"\n" * ((1 << 16) - len(head) - into)  # the first chunk ends `into` bytes into the MOTION line
+    path = tmp_path / "c.bvh"
+    path.write_bytes(head + motion.encode() + rest)
+    if found:
+        assert read_hierarchy(path)[0].encode() == head == parse_bvh(path.read_bytes()).header.encode()[: len(head)]
+    else:
+        for read in (lambda: read_hierarchy(path), lambda: parse_bvh(path.read_bytes(), str(path))):
+            with pytest.raises(MocapFormatError, match="no MOTION line: not a BVH file"):
+                read()
 
 
 AWKWARD = np.array([[0.0, -0.0, 0.5, 2.5, -1.5, 1e22, 1e23],  # signed zeros, halves, past the exact powers of ten

@@ -40,6 +40,46 @@ def test_output_to_stdout_is_a_usage_error(tmp_path, monkeypatch, command, what)
     assert list(tmp_path.iterdir()) == []  # no file or folder named "-"
 
 
+@pytest.mark.parametrize("command, what", [("compress", "file"), ("decompress", "folder"), ("convert", "folder")])
+def test_an_empty_output_is_a_usage_error(tmp_path, monkeypatch, shared_data, command, what):
+    """`-o ''` named nothing: decompress and convert wrote into the current folder, compress failed
+    with `[Errno 2] No such file or directory: ''`."""
+    monkeypatch.chdir(tmp_path)
+    source = GOLDEN_LOSSY if command == "decompress" else shared_data / "cmu-bvh/10/10_03.bvh"
+    result = run(command, source, "-o", "")
+    assert result.exit_code == 2
+    assert f"Error: Invalid value for '-o' / '--output': an empty name names no {what}; name one\n" in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command, in_the_way", [("decompress", "dangling link"), ("convert", "dangling link"),
+                                                 ("convert", "file below")])
+def test_an_output_folder_that_is_no_folder_is_refused_even_with_force(tmp_path, shared_data, command, in_the_way):
+    """`-o` a symbolic link to nothing, with -f, was refused as `already exists (use -f/--force to
+    overwrite)`; a file where a folder of the output goes is not what -f replaces either (`-o` a
+    file is a usage error already). Refused in one line before any file is written."""
+    source = tmp_path / "in"
+    if command == "decompress":
+        source = GOLDEN_LOSSY
+    else:
+        (source / "sub").mkdir(parents=True)
+        for name in ("09.asf", "09_01.amc"):
+            (source / "sub" / name).symlink_to(shared_data / "cmu/09" / name)
+    out = tmp_path / "out"
+    if in_the_way == "dangling link":
+        out.symlink_to(tmp_path / "nowhere")
+        blocked, kind = out, "a symbolic link to nothing"
+    else:  # where the folder of the file written goes: out/sub/09_01.bvh
+        out.mkdir()
+        (out / "sub").write_bytes(b"x")
+        blocked, kind = out / "sub", "a file"
+    before = sorted(tmp_path.rglob("*"))
+    result = run(command, source, "-o", out, "-f")
+    assert result.exit_code == 1
+    assert result.stderr == f"mcz: error: {blocked}: not a folder but {kind}: files cannot be written under it\n"
+    assert sorted(tmp_path.rglob("*")) == before
+
+
 @pytest.mark.parametrize("option", [["-e", "1.0"], ["--error", "0.5"], ["-r", "channels"], ["-t", "dwt"],
                                     ["--wavelet", "db2"], ["--level", "2"], ["--split", "1,1,1"], ["--segment"]])
 def test_lossy_only_options_refused_with_lossless(tmp_path, option):

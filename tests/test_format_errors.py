@@ -338,6 +338,18 @@ def test_frames_may_start_anywhere(tmp_path):
     assert motion.frame_numbers[0] == 10000 and motion.n_frames == n
 
 
+@pytest.mark.parametrize("line_end", ["\n", "\r"])  # the compiled path, and the exact one
+def test_a_frame_number_of_more_digits_than_int_takes_is_read_by_its_value(tmp_path, line_end):
+    """int() refuses a word of more than 4,300 digits, leading zeros too: before, the exact path
+    raised its ValueError (a traceback in every command)."""
+    lines = amc_lines()
+    i = lines.index("50")
+    lines[i] = "0" * 5000 + "50"
+    path = tmp_path / "long.amc"
+    path.write_text(line_end.join(lines))
+    assert read_amc(path).frame_numbers[49] == 50
+
+
 def test_frame_without_bones(tmp_path):
     raises(write(tmp_path, [":DEGREES", "1", "2", "root 1 2 3 4 5 6"]), r"frame 1 has no bone lines", 2)
 
@@ -409,6 +421,15 @@ def write_asf_lines(tmp_path, lines):
     path = tmp_path / "bad.asf"
     path.write_text("\n".join(lines))
     return path
+
+
+def test_an_asf_bone_id_of_more_digits_than_int_takes_is_read_by_its_value(tmp_path):
+    """Before: the ValueError of int(), which refuses more than 4,300 digits, leading zeros too."""
+    lines = asf_lines()
+    i = next(k for k, line in enumerate(lines) if line.split() == ["id", "2"])
+    for sign, value in (("", 2), ("-", -2)):
+        lines[i] = f"    id {sign}{'0' * 5000}2"
+        assert read_asf(write_asf_lines(tmp_path, lines)).bone("lfemur").id == value
 
 
 def test_asf_bone_without_end(tmp_path):

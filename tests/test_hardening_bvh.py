@@ -170,3 +170,48 @@ def drawn_shapes(draw) -> Shape:
 @given(shape=drawn_shapes())
 def test_drawn_bvh_files_round_trip(shape, tmp_path_factory):
     round_trip(tmp_path_factory.mktemp("drawn"), bvh_text(shape).encode("utf-8"))
+
+
+# --------------------------------------------------------------------------- values lossy coding cannot hold
+
+HUGE_VALUES = {  # each read by every reader; their numbers as written are too coarse or too near the limit
+    "root_at_1e8_6_digits": ("123456789.123", "45.5"),  # written back as 1.23457e+08: a metre's precision
+    "every_value_near_1e8": ("98765432.123", "98765432.123"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(HUGE_VALUES))
+def test_values_lossy_coding_cannot_hold_are_refused_in_one_line(name, tmp_path):
+    """Before: a traceback from the rate control. --lossless keeps them exactly."""
+    position, angle = HUGE_VALUES[name]
+    shape = Shape(person(Joint("Spine", offset="0 50 0", children=[Joint("Head", offset="0 60 0")])), frames=3)
+    text = bvh_text(shape).split("\n")
+    start = text.index("MOTION") + 3
+    for f in range(start, start + 3):
+        text[f] = " ".join([position] * 3 + [angle] * 9)
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "c.bvh").write_text("\n".join(text))
+    (tmp_path / "out").mkdir()
+    result = run(tmp_path, COMMANDS["compress"])
+    lines = result.stderr.splitlines()
+    assert result.exit_code == 1 and len(lines) == 1 and lines[0].startswith("mcz: error: in/c.bvh: "), result.output
+    assert "--lossless" in lines[0] and os.listdir(tmp_path / "out") == []
+    assert run(tmp_path, COMMANDS["compress --lossless"]).exit_code == 0
+    assert run(tmp_path, ["decompress", "out/db.mcz", "-o", "back"]).exit_code == 0
+    assert (tmp_path / "back" / "c.bvh").read_bytes() == (tmp_path / "in" / "c.bvh").read_bytes()
+
+
+def test_an_amc_root_at_the_value_limit_is_refused_lossy(shared_data, tmp_path):
+    """Before: exit 0, and an archive that `mcz test` and `decompress` called damaged: a real clip
+    whose root stands at x = 1e9, the most a file may hold, decoded a hair past it."""
+    (tmp_path / "in").mkdir()
+    shutil.copy(shared_data / "cmu" / "09" / "09.asf", tmp_path / "in")
+    lines = (shared_data / "cmu" / "09" / "09_01.amc").read_text().splitlines()
+    for k in [k for k, line in enumerate(lines) if line.startswith("root ")]:
+        words = lines[k].split()
+        lines[k] = " ".join(["root", "1000000000", *words[2:]])
+    (tmp_path / "in" / "09_01.amc").write_text("\n".join(lines) + "\n")
+    (tmp_path / "out").mkdir()
+    result = run(tmp_path, ["compress", "in", "-o", "out/db.mcz", "-j", "1", "-q"])
+    assert result.exit_code == 1 and result.stderr.startswith("mcz: error: in/09_01.amc: its decoded values would pass")
+    assert os.listdir(tmp_path / "out") == []

@@ -277,3 +277,18 @@ def test_full_disk_during_decompress_leaves_no_half_file(tmp_path, monkeypatch):
     left = {p.name: p.read_bytes() for p in out.iterdir()}
     assert list(left) == [first]  # the file completed before; no temp file
     assert left == {name: (reference / name).read_bytes() for name in left}
+
+
+@pytest.mark.parametrize("name", ["\uff11\uff12\uff13", "\u0661\u0662\u0663", "\u00b2"])
+def test_a_bone_named_with_digits_other_than_ascii_compresses(shared_data, tmp_path, name):
+    """An AMC line is a frame number only if it is ASCII digits (formats.amc); meta's rule said
+    `str.isdigit()`, so these bones, which every reader takes, made compress blame its archive."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for file in ("09.asf", "09_01.amc"):
+        text = (shared_data / "cmu" / "09" / file).read_text(encoding="latin-1")
+        (folder / file).write_text(re.sub(r"\blfemur\b", name, text), encoding="utf-8")
+    for flags in ([], ["--lossless"]):
+        assert run("compress", folder, "-o", tmp_path / "db.mcz", "-f", "-q", *flags).exit_code == 0
+        assert run("decompress", tmp_path / "db.mcz", "-o", tmp_path / "back", "-f", "-q").exit_code == 0
+        assert f"\n{name} ".encode() in (tmp_path / "back" / "09_01.amc").read_bytes()

@@ -17,6 +17,7 @@ import pywt
 
 from mocapzip.classes.modes import MAX_PATTERN_CHARS
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
+from mocapzip.formats.bvh import MAX_MOTION_CHARS as BVH_MOTION_CHARS
 from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
 from mocapzip.formats.bvh import motion_lines_problem
 from mocapzip.formats.text import MAX_FRAME_RATE
@@ -57,7 +58,7 @@ _FRAME_NUMBER = {"type": "integer", "minimum": 0, "maximum": MAX_FRAME_NUMBER}
 
 # a BVH clip's text beside its values (format 8 on): its MOTION lines, and how its frame lines are written
 _BVH_TEXT = _record({
-    "motion": {"type": "string", "maxLength": 4096},
+    "motion": {"type": "string", "maxLength": BVH_MOTION_CHARS},
     "style": _record({
         "number": {"enum": list(BVH_NUMBER_STYLES)},
         "separator": {"enum": [" ", "\t"]},
@@ -300,7 +301,8 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
                           f"({MAX_VALUES_PER_FRAME} values per frame, {MAX_VALUES_PER_CLIP} per clip)")
     if row["first_frame"] + row["frames"] - 1 > MAX_FRAME_NUMBER:
         raise fail(f"{where}.first_frame", f"frame numbers would pass {MAX_FRAME_NUMBER}")
-    if "bvh" not in row and any(b.isdigit() for b in row["bones"]):  # an AMC line; a BVH clip is written as BVH
+    # An AMC line of ASCII digits is a frame number (`formats.amc`); a BVH clip is written as BVH.
+    if "bvh" not in row and any(b.isascii() and b.isdigit() for b in row["bones"]):
         raise fail(f"{where}.bones", "a bone name of digits only would read back as a frame number")
     if row["skeleton"] >= n_skeletons:
         raise fail(f"{where}.skeleton", f"index {row['skeleton']} but the archive has {n_skeletons} skeletons")

@@ -39,7 +39,7 @@ from mocapzip.formats.asf import parse_asf
 from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
-from mocapzip.formats.text import MAX_ABS_VALUE, write_file_atomically
+from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, write_file_atomically
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
@@ -466,6 +466,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
             if os.path.commonpath([root, os.path.realpath(path.parent)]) != root:
                 raise MocapFormatError("its folder leads outside the output folder through a symbolic link; "
                                        "refusing to write it", path)
+        check_folders(path.parent for path in targets)
         existing = [p for p in targets if os.path.lexists(p)]
         if existing and not force:
             raise FileExistsError(None, "already exists", os.fspath(existing[0]))

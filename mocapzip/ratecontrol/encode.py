@@ -33,7 +33,7 @@ from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.clip import FinalCheck
 from mocapzip.parallel import parallel_map
-from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved, smallest_within
+from mocapzip.ratecontrol.max_error import Achieved, Bounds, TargetError, achieved, smallest_within
 from mocapzip.ratecontrol.planted_feet import planted
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
@@ -76,10 +76,6 @@ def component_weights(variances: np.ndarray) -> np.ndarray:
     if TOLERANCE_EXPONENT == 0 or not len(variances):
         return np.ones(len(variances))
     return (np.maximum(variances, 1e-30) / max(variances[0], 1e-30)) ** (TOLERANCE_EXPONENT / 2)
-
-
-class TargetError(MocapFormatError):
-    """No coding of a clip meets the error target: the target is below the input's own precision."""
 
 
 _SHARED: dict = {}  # what the workers of a class's maps read (its clips by index: each loads them, never pickled)

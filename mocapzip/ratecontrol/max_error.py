@@ -23,6 +23,8 @@ import numpy as np
 
 from mocapzip.codec.patches import MAX_LEVEL, FramePatches, channel_steps, frame_steps
 from mocapzip.codec.quantise import UniformQuantiser
+from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.text import MAX_ABS_VALUE
 from mocapzip.inputs.glitches import glitch_mask, repaired_ranges
 from mocapzip.motion import compiled
 from mocapzip.motion.contacts import contacts
@@ -34,6 +36,10 @@ PATCH_DEAD_ZONE = 0.45  # small residuals left out: a frame then passes at a fin
 PATCH_SHARE = 0.15
 LOWERED = 0.75
 MAX_LOWERINGS = 4
+
+
+class TargetError(MocapFormatError):
+    """No coding of a clip meets its error target or bound: they are below the input's own precision."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +90,7 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     limits = joint_limits(clip, bounds, repaired)
     bad = np.flatnonzero(np.any(distances > limits, axis=1)) if limits is not None else np.zeros(0, np.int64)
     if not bad.size:
+        _check_range(clip, values)
         return _with_repairs(distances, repaired, clip), None
     steps = channel_steps(clip.model, clip.layout)
     step_cm = float(np.float32(bounds.max_error_cm if bounds.max_error_cm is not None else bounds.contact_error_cm))
@@ -102,10 +109,13 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     while pending.size:
         if levels[pending].max() > MAX_LEVEL:
             frame = int(bad[pending[np.argmax(levels[pending])]])
-            raise ValueError(f"frame {frame} stays beyond its bound at every patch level")
+            raise _unbounded(clip, f"frame {frame} stays beyond its bound at every patch level")
         row_steps = np.array([frame_steps(steps, step_cm, int(level)) for level in levels[pending]])
         kept = np.where(corrected[pending], residual[pending], 0.0)
-        ints[pending] = UniformQuantiser(1.0, PATCH_DEAD_ZONE).quantise(kept / row_steps)
+        try:
+            ints[pending] = UniformQuantiser(1.0, PATCH_DEAD_ZONE).quantise(kept / row_steps)
+        except ValueError:  # a value so large that its patch would pass the quantiser's range
+            raise _unbounded(clip, f"frame {int(bad[pending[0]])} needs a patch larger than patches hold") from None
         patched = values[bad[pending]] + ints[pending] * row_steps  # as FramePatches.apply adds them
         after = clip.decode_tail.joint_distances(clip.as_written(patched), original[bad[pending]])
         passed = np.all(after <= limit[pending], axis=1) & (
@@ -119,7 +129,27 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
         corrected[failed] = wider
         levels[failed[finer]] += 1
         pending = failed
-    return _with_repairs(distances, repaired, clip), FramePatches(step_cm, bad, levels, ints)
+    patches = FramePatches(step_cm, bad, levels, ints)
+    patched = values.copy()
+    patches.apply(patched, steps)
+    _check_range(clip, patched)
+    return _with_repairs(distances, repaired, clip), patches
+
+
+def _check_range(clip, values: np.ndarray) -> None:
+    """TargetError where a decoded value would pass +-MAX_ABS_VALUE: the decoder refuses such an
+    archive (`Archive._check_range`), so a source value at the limit cannot be coded lossy."""
+    if not np.all(np.abs(values) <= MAX_ABS_VALUE):
+        raise TargetError(f"its decoded values would pass +-{MAX_ABS_VALUE:g}, the most any file may hold (values "
+                          "that close to the limit cannot be coded lossy); use --lossless", clip.source.amc)
+
+
+def _unbounded(clip, why: str) -> TargetError:
+    """A clip whose written numbers are too coarse (or too large) for its bound: one line naming it.
+    Its values print with the digits its file used (`as_written`): near 1e8, 6 digits are metres."""
+    return TargetError(f"no coding holds its joints within the bound ({why}): the bound is finer than the "
+                       "precision of the clip's numbers allows; use a larger --max-error, or --lossless",
+                       clip.source.amc)
 
 
 def joint_limits(clip, bounds: Bounds, repaired: np.ndarray | None = None) -> np.ndarray | None:

@@ -27,7 +27,7 @@ LINE_ENDS = ("\n", "\r\n", "\r")
 # words, any case, each line ending in CRLF, LF or CR
 _END = r"(?:\r\n|\n|\r)"
 MOTION = re.compile(rf"[ \t]*MOTION[ \t]*{_END}[ \t]*Frames[ \t]*:[ \t]*([0-9]+)[ \t]*{_END}"
-                    rf"[ \t]*Frame[ \t]+Time[ \t]*:[ \t]*(\S+)[ \t]*{_END}\Z", re.IGNORECASE)
+                    rf"[ \t]*Frame[ \t]+Time[ \t]*:[ \t]*(\S+)[ \t]*{_END}\Z", re.IGNORECASE | re.ASCII)
 MAX_VALUE = 1e9  # "BVH text": a decoded value of magnitude above 1e9 or not finite is refused
 
 
@@ -93,7 +93,8 @@ class Hierarchy:
         return np.array(values)
 
     def joint(self, parent):
-        """`name { ... }`: in any order OFFSET, at most one CHANNELS, JOINTs, at most one End Site."""
+        """`name { ... }`: in any order OFFSET, at most one CHANNELS (before any JOINT), JOINTs, at most one
+        End Site."""
         joint = Joint(self.next(), parent)
         index = len(self.joints)
         self.joints.append(joint)
@@ -103,7 +104,7 @@ class Hierarchy:
         while (word := self.next()) != "}":
             if word == "OFFSET" and joint.offset is None:
                 joint.offset = self.numbers(3)
-            elif word == "CHANNELS" and joint.channels is None:
+            elif word == "CHANNELS" and joint.channels is None and not joint.joints:
                 count = self.next()
                 if not count.isdigit() or not 1 <= int(count) <= 6:
                     raise ValueError(f"BVH: joint {joint.name!r}: CHANNELS count {count!r} (1 to 6)")

@@ -434,9 +434,9 @@ class Skeleton:
                 elif key == "dof":
                     bone["dof"] = [w.lower() for w in words[1:]]
             elif section == ":hierarchy":
-                if key == "begin":
+                if key == "begin" and len(words) == 1:
                     in_hierarchy = True
-                elif key == "end":
+                elif key == "end" and len(words) == 1:
                     in_hierarchy = False
                 elif in_hierarchy:
                     hierarchy.setdefault(words[0], []).extend(words[1:])
