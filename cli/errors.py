@@ -85,6 +85,8 @@ def reports_errors(command):
             _fail(f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc))
         except ClusterError as exc:
             _fail(f"{exc}; no partial file was left behind")
+        except MemoryError:  # numpy's and numba's (a limit on address space, or a full machine)
+            _fail("out of memory; no partial file was left behind")
         except BrokenProcessPool:  # a worker killed (the OOM killer, kill -9): its parent ends cleanly
             _fail("a worker process ended abruptly (killed, or out of memory); no partial file was left behind")
         except KeyboardInterrupt as exc:

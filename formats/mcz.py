@@ -17,6 +17,7 @@ import functools
 import io
 import itertools
 import json
+import math
 import os
 import secrets
 import stat
@@ -34,7 +35,7 @@ from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import open_regular_file
 
-__all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "write_archive"]
+__all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "parse_json", "write_archive"]
 
 FORMAT_VERSION = 12
 # HDF5 object versions no newer than HDF5 1.10's (format 12 on). With "latest", h5py's own HDF5
@@ -60,6 +61,32 @@ MAX_INDEX_BYTES = MAX_DECODED_STREAM_BYTES
 
 class ArchiveError(MocapFormatError):
     """A damaged or invalid archive; the message starts with the section: header, index or stream."""
+
+
+def _refuse_constant(name: str):
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def parse_json(data: bytes):
+    """JSON as the spec defines it: UTF-8 text (no byte-order mark, which Python's json would skip,
+    nor UTF-16, which it would detect), no NaN or Infinity, nor a number that overflows to one
+    (1e400), and no key twice in an object (Python keeps the last)."""
+    return json.loads(bytes(data).decode("utf-8"), parse_constant=_refuse_constant, parse_float=_finite,
+                      object_pairs_hook=_unique_keys)
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text[:20]} is not a finite number")
+    return value
+
+
+def _unique_keys(pairs: list) -> dict:
+    doc = dict(pairs)
+    if len(doc) != len(pairs):
+        raise ValueError(f"a key appears twice in an object: {next(k for k in doc if [p[0] for p in pairs].count(k) > 1)!r}"[:120])
+    return doc
 
 
 def _legacy_header_crc(format_version: int, tool_version: str, index_crc32: int) -> int:
@@ -504,7 +531,7 @@ class ArchiveReader:
             index = read(size)
             if len(index) != size or zlib.crc32(index) != f.attrs["index_crc32"]:
                 raise self._error("index: CRC32 mismatch")
-            doc = json.loads(index)
+            doc = parse_json(index)
         contents = doc.pop("contents", {}) if isinstance(doc, dict) and self.format_version >= 10 else {}
         if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
             raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}"
@@ -551,7 +578,7 @@ class ArchiveReader:
                 raise self._error("index: the zstd frame does not state its size")
             if size > MAX_INDEX_BYTES:
                 raise self._error(f"index: unpacks to {size} bytes, more than the limit of {MAX_INDEX_BYTES}")
-            doc = json.loads(zstandard.ZstdDecompressor().decompress(index, allow_extra_data=False))
+            doc = parse_json(zstandard.ZstdDecompressor().decompress(index, allow_extra_data=False))
         if not isinstance(doc, dict) or sorted(doc) != sorted(_LEGACY_INDEX_KEYS):
             raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_LEGACY_INDEX_KEYS)}")
         names, offsets, lengths, crcs = self._index_columns(doc, _LEGACY_INDEX_KEYS)

@@ -1,6 +1,6 @@
-"""Shared text handling for the Acclaim readers: decoding, line splitting and number parsing.
+"""Shared text handling for the text readers (ASF, AMC, BVH): decoding, line splitting and number parsing.
 
-Numbers follow one grammar everywhere (ASF, AMC, fast and exact paths)::
+Numbers follow one grammar everywhere (ASF, AMC, BVH, fast and exact paths)::
 
     [+-]? ( digits [. digits?] | . digits ) ( [eE] [+-]? digits )?
 
@@ -9,7 +9,7 @@ some of them. Values must be finite and at most `MAX_ABS_VALUE` in magnitude: mo
 capture angles and positions are far below 1e9, and a value like 1e308 is a corrupted file,
 not a pose (it would also overflow every later computation).
 
-AMC files convert their many numbers in compiled code (`amc_compiled`), with the same grammar
+AMC and BVH files convert their many numbers in compiled code (`amc_compiled`), with the same grammar
 and the same results as `number` here.
 """
 

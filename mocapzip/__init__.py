@@ -7,6 +7,15 @@
 
 The API (docs/api.md) lives in `mocapzip.api`; its names are loaded on first use, so that
 `import mocapzip` (and `mcz --help`) stays fast.
+
+The packages, in pipeline order (docs/architecture.md): `inputs` (which files are clips),
+`motion` (skeletons, kinematics, metrics), `representations` (what the codec compresses),
+`classes` (which clips share a basis), `codec` (the stages), `ratecontrol` (the error budget
+spent), `archive` (compress and decompress), and `bench`; `formats` (the file formats) and `cli`
+(the command line) install from formats/ and cli/. Beside them: `stages` (the one registry of
+stages), `convert` (`mcz convert`), `parallel` and `cluster` (the work over `-j` processes or a
+Dask cluster), `limits` (what every reader checks), `defaults` (values the CLI and API share
+without NumPy) and `progress` (progress bars).
 """
 
 import os as _os

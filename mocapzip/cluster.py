@@ -30,6 +30,7 @@ import importlib
 import logging
 import os
 import pickle
+import re
 import signal
 import socket
 import struct
@@ -72,6 +73,9 @@ def parse_address(address: str) -> tuple[int | None, str | None]:
         return int(count), None
     if not address or any(c.isspace() for c in address):
         raise ClusterError(f"--dask {address[:60]!r}: expected a scheduler address such as tcp://host:8786, or local:N")
+    port = re.search(r":(-?\d+)/?$", address)
+    if port and not (len(port[1]) <= 6 and 1 <= int(port[1]) <= 65535):  # 70000 would reach port 4464
+        raise ClusterError(f"--dask {address[:60]}: port {port[1][:10]} is not a port (1 to 65535)")
     return None, address
 
 
@@ -106,12 +110,15 @@ def on_cluster(address: str, dashboard: bool = False):
                 scheduler = local.scheduler_address
             client = distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False)
             client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        except (OSError, TimeoutError, ValueError, TypeError, MemoryError) as exc:
             for opened in (client, local):
                 if opened is not None:
                     opened.close()
             what = "has no workers" if client is not None else "cannot be reached"
             message = f"the Dask scheduler at {scheduler} {what} ({type(exc).__name__}: {exc})"
+            if isinstance(exc, MemoryError):  # Dask read a size from the peer's bytes: not Dask's messages
+                message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, bytes Dask read as "
+                           "a message size past memory)")
             del exc
             gc.collect()  # a Client that failed while it was made is closed now, not during the next one's start
             raise ClusterError(message) from None
@@ -146,6 +153,8 @@ def _check_handshake(address: str, host: str, port: int, timeout: float) -> None
         try:
             connection = socket.create_connection((host, port), timeout=max(deadline - time.monotonic(), 0.001))
             break
+        except UnicodeError as exc:  # a host name IDNA cannot encode ("a..b", a label over 63 characters)
+            raise ClusterError(f"the Dask scheduler at {address[:80]} cannot be reached (host name: {exc})") from None
         except OSError as exc:
             if time.monotonic() + 0.1 >= deadline:
                 raise ClusterError(f"the Dask scheduler at {address} cannot be reached "

@@ -16,3 +16,7 @@ MAX_DECODED_STREAM_BYTES = 1 << 28  # 256 MiB: what one zstd-coded stream (meta,
 MAX_PATH_BYTES = 4096  # a stored clip path or skeleton name, UTF-8
 MAX_NATURAL_MODES = 8  # --model tensor: the natural modes of a class's grid (classes.modes, codec.tensor)
 MAX_TENSOR_MODEL_NUMBERS = 1 << 23  # --model tensor: the numbers one model stores (mean, core, factors), 64 MiB as int64
+# A decoded pose value (a joint coordinate in cm times its weight, docs/format.md) beyond this is
+# no body's: a crafted model or basis whose products reach 1e124 decoded to angles that two
+# correct decoders disagree on by thousands of degrees. Real poses stay below 1e7.
+MAX_ABS_POSE = 1e12

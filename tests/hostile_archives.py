@@ -35,7 +35,7 @@ from mocapzip.codec.tensor import TensorModel
 from mocapzip.formats.mcz import ArchiveReader, write_archive
 
 GOLDEN = Path(__file__).parent / "golden"
-# the newest format; two clips, 09_01 (148 frames, 62 values, 25 of them patched) and 64_01
+# format 7's; two clips, 09_01 (148 frames, 62 values, 25 of them patched) and 64_01
 BASES = {"lossy": GOLDEN / "lossy_v7.mcz", "lossless": GOLDEN / "lossless_v7.mcz",
          # format 8's: the same two clips, then a BVH one (clip 2, skeleton 0: Bandai's walk-back_normal_001,
          # 31 frames, whose extra root moves, so it has a stream extra_root/00002)

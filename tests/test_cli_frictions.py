@@ -352,3 +352,17 @@ def test_an_archive_that_appears_while_compress_writes_is_refused_in_the_clis_wo
     assert result.exit_code == 1
     assert result.stderr == f"mcz: error: {target}: already exists (use -f/--force to overwrite)\n"
     assert target.read_bytes() == b""
+
+
+def test_running_out_of_memory_is_one_line(monkeypatch):
+    """A MemoryError (numpy's or numba's, under a limit on address space) was a traceback: a clip
+    at the limits decoded on two threads took about 1 GB of address space."""
+    from mocapzip.archive import reader
+
+    def exhausted(self, jobs=1):
+        raise MemoryError("Allocation failed (probably too large).")
+
+    monkeypatch.setattr(reader.Archive, "verify", exhausted)
+    result = CliRunner().invoke(main, ["test", str(GOLDEN_LOSSY)])
+    assert result.exit_code == 1 and isinstance(result.exception, SystemExit)
+    assert result.stderr == "mcz: error: out of memory; no partial file was left behind\n"

@@ -54,6 +54,9 @@ PEERS = {
     "closes_at_once": (b"", True),
     "closes_mid_handshake": (message(HANDSHAKE)[:20], True),
     "trickles_forever": (None, False),  # a first message of 32 KiB, a byte every 0.1 s: never whole
+    # a handshake that passes mcz's check, then what Dask's own connections read as a message's size
+    "handshake_then_http": (message(HANDSHAKE) + b"HTTP/1.1 400 Bad Request" + bytes(1000), False),
+    "handshake_then_an_exbibyte": (message(HANDSHAKE) + struct.pack("Q", 1 << 60), False),
 }
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import os
 import random
 import time
@@ -456,3 +457,17 @@ def test_contents_are_written_into_the_index_and_read_back(tmp_path):
     write_archive(tmp_path / "d.mcz", {"s": b"x"}, tool_version="1", contents=[1])
     with pytest.raises(ArchiveError, match="index: contents is not a JSON object"):
         ArchiveReader(tmp_path / "d.mcz")
+
+
+@pytest.mark.parametrize("index, problem", [
+    (b'{"tool":"t","names":["a"],"names":["b"],"lengths":[0],"crc32":[0]}', "a key appears twice in an object: 'names'"),
+    (b'\xef\xbb\xbf{"tool":"t","names":["a"],"lengths":[0],"crc32":[0]}', "Unexpected UTF-8 BOM"),
+    (b'{"tool":"t","names":["a"],"lengths":[1e400],"crc32":[0]}', "1e400 is not a finite number"),
+])
+def test_an_index_python_would_read_loosely_is_refused(tmp_path, index, problem):
+    """Python's json keeps the last of two keys, skips a byte-order mark and reads 1e400 as inf: the
+    spec's index is strict JSON, so each is a damaged index (`parse_json`, shared with meta)."""
+    path = tmp_path / "loose.mcz"
+    path.write_bytes((GOLDEN / "container_v7.mcz").read_bytes())
+    with pytest.raises(ArchiveError, match=re.escape(problem)):
+        ArchiveReader(with_index(path, index)).close()

@@ -1,8 +1,9 @@
 """Old archive formats, decode only, in one place (as zstd keeps `lib/legacy`).
 
 The reader (`mocapzip.archive.reader`) dispatches on the container's `format_version`; what
-formats 4 to 6 do is written by the codec modules, and only what an older one did
-differently lives here. Nothing here encodes: no path can write an old layout.
+format 4 and every later format do is decoded by the codec modules (what formats 7 and 10
+changed in the `meta` and `skeletons` streams by the reader's own branches), and only what
+formats 1 to 3 did differently lives here. Nothing here encodes: no path can write an old layout.
 
 | format_version | differs from format 4 in |
 |---|---|

@@ -21,7 +21,7 @@ from mocapzip.formats.bvh import MAX_MOTION_CHARS as BVH_MOTION_CHARS
 from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
 from mocapzip.formats.bvh import motion_lines_problem
 from mocapzip.formats.text import MAX_FRAME_RATE
-from mocapzip.formats.mcz import ArchiveError
+from mocapzip.formats.mcz import ArchiveError, parse_json
 from mocapzip.defaults import UNITS_CM
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_NATURAL_MODES, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import stage_classes, stage_ids
@@ -186,13 +186,6 @@ def _schema_check(detailed: bool):
     return fastjsonschema.compile(SCHEMA, detailed_exceptions=detailed)
 
 
-def _refuse_constant(name: str):
-    raise ValueError(f"{name} is not a JSON number")
-
-
-def parse_json(data: bytes):
-    """JSON as the spec defines it: no NaN or Infinity, which Python's json would accept."""
-    return json.loads(data, parse_constant=_refuse_constant)
 
 
 def validate(meta, stream_names: list[str], archive_path: str, format_version: int) -> dict[str, tuple[str, int]]:

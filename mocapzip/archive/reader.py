@@ -1,9 +1,11 @@
 """`mcz decompress` / `info` / `test`: an .mcz archive -> its clips, decoded on demand.
 
 The reader trusts nothing in the file (`meta.validate`, `mocapzip.limits`) and dispatches on
-the container's `format_version`: format 4's streams are decoded by the codec modules, older
-ones' differences by `legacy` alone. Every clip goes through one decode tail
-(`representations.weighted.DecodeTail`), as the encoder's error check does.
+the container's `format_version`: format 4 and later formats' streams are decoded by the codec
+modules (what formats 7 and 10 changed in `meta` and `skeletons`, zstd dictionaries and
+predicted skeleton numbers, by branches here), formats 1 to 3's differences by `legacy`.
+Every clip goes through one decode tail (`representations.weighted.DecodeTail`), as the
+encoder's error check does.
 """
 
 from __future__ import annotations
@@ -40,12 +42,13 @@ from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
 from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, write_file_atomically
-from mocapzip.limits import MAX_DECODED_STREAM_BYTES
+from mocapzip.limits import MAX_ABS_POSE, MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.motion.timewarp import path_of_moves
 from mocapzip.parallel import imap, one_blas_thread, thread_imap
 from mocapzip.progress import progress
+from mocapzip.representations.base import ROOT_TRACK_WIDTH
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
 from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout
@@ -205,6 +208,8 @@ class Archive:
                     if "tensor_at" in row:  # --model tensor: the stream coded what the class's model misses
                         name = f"warp/{index:05d}"
                         poses = poses + self._prediction(row, self._reader.read(name), poses.shape[1])
+                if not np.all(np.abs(poses) <= MAX_ABS_POSE):  # an overflowing model or basis, or NaN
+                    raise ValueError(f"decoded poses beyond +-{MAX_ABS_POSE:g}, or not numbers")
                 twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
                 tail = self._decode_tail(row["skeleton"], layout)
                 values = tail.decode(poses, root, twist)
@@ -288,7 +293,7 @@ class Archive:
         basis = self._basis(class_index)
         check_matrix_shape(n_frames, basis.mean.size)  # the decoded poses: bounded before they are made
         with_root = self.stages["representation"].has_root_track
-        shapes = [(n_frames, basis.q), (n_frames, 4)][: 2 if with_root else 1]
+        shapes = [(n_frames, basis.q), (n_frames, ROOT_TRACK_WIDTH)][: 2 if with_root else 1]
         coded = self._decode_clip(self._reader.read(stream), shapes)
         if (coded.root_ints is not None) != with_root:
             raise ValueError(f"{'no' if with_root else 'a'} root track matrix, where the representation "

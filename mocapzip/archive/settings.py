@@ -11,6 +11,9 @@ from mocapzip.defaults import DEFAULT_FPS
 from mocapzip.stages import get_stage, stage_ids
 
 DEFAULT_ERROR_CM = 1.0
+# Errors and bounds above this mean nothing for a body (10 km) and overflow the step arithmetic
+# (`-e 1e200`: OverflowError in `codec.basis.steps_for`, which squares them).
+MAX_ERROR_CM = 1e6
 AUTO_CODER = "auto"  # compress only: "primed" when the priors pay for themselves, else "context"
 
 
@@ -93,13 +96,13 @@ def checked(settings: Settings) -> Settings:
             compiled_modes(settings.modes)
         except ValueError as exc:
             raise SettingsError(str(exc)) from None
-    if not settings.error_cm > 0:
-        raise SettingsError(f"error_cm must be above 0, got {settings.error_cm}")
+    if not 0 < settings.error_cm <= MAX_ERROR_CM:
+        raise SettingsError(f"error_cm must be above 0 and at most {MAX_ERROR_CM:g} cm, got {settings.error_cm}")
     bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm}
     bounds = {name: bound for name, bound in bounds.items() if bound is not None}
     for name, bound in bounds.items():
-        if not bound > 0:
-            raise SettingsError(f"{name} must be above 0, got {bound}")
+        if not 0 < bound <= MAX_ERROR_CM:
+            raise SettingsError(f"{name} must be above 0 and at most {MAX_ERROR_CM:g} cm, got {bound}")
     numbers = [settings.error_cm, *bounds.values(), settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
                settings.fps, *(settings.split or [])]
     if not all(math.isfinite(x) for x in numbers):

@@ -1,4 +1,4 @@
-"""`mcz compress`: clips on disk -> the streams of one .mcz archive (format 10).
+"""`mcz compress`: clips on disk -> the streams of one .mcz archive (the newest format, `FORMAT_VERSION`).
 
 Streams (see docs/format.md, "Streams written by the codec"):
   meta        zstd JSON (dictionary meta.json): settings, skeleton and class tables, one row per clip
@@ -9,6 +9,10 @@ Streams (see docs/format.md, "Streams written by the codec"):
   clip/NNNNN  a clip's coefficient payload (lossy) or lossless channel code
   clip/NNNNN/SSS  segment SSS of a take cut by --segment (its row in meta lists the segments)
   extra_root/NNNNN  a lossy BVH clip's extra root's channels, lossless channel code (format 8 on)
+  patch/NNNNN  a lossy clip's frame patches (--max-error, --contact-error; format 5 on)
+  plant/NNNNN  the stances a lossy clip's foot lock holds (--plant-feet; format 9 on)
+  tensor/NNNN  a class's tensor model (--model tensor; format 11 on)
+  warp/NNNNN   a clip's warping path onto its class's tensor model (format 11 on)
 """
 
 from __future__ import annotations
@@ -53,7 +57,7 @@ from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import TargetError, code_clip, encode_class
 from mocapzip.ratecontrol.max_error import Achieved, Bounds, achieved
 from mocapzip.ratecontrol.tensor import encode_tensor_class
-from mocapzip.representations.base import Encoded
+from mocapzip.representations.base import ROOT_TRACK_WIDTH, Encoded
 from mocapzip.stages import get_stage
 
 TIGHTENINGS = 8  # times a segmented take's segments are coded again, 10 % tighter, if the joined take misses
@@ -639,7 +643,7 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
     payloads, errors = [c[2] for c in coded], [c[3] for c in coded]
     for _ in range(TIGHTENINGS):
         decoded = [reconstruct(CodedClip.from_payload(payload, coder, [(unit.coded_frames, c[1].q),
-                                                                       (unit.coded_frames, 4)]),
+                                                                       (unit.coded_frames, ROOT_TRACK_WIDTH)]),
                                c[1], transform, dz, unit.coded_frames)
                    for payload, c, unit in zip(payloads, coded, units)]
         joined = join_decoded(decoded, cores, clip.motion.n_frames, OVERLAP)

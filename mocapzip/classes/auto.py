@@ -423,7 +423,7 @@ def _calibrate_clip(index: int):
 
     Truncations of the PCA of all clips give pairs (weighted pose RMS error, mean joint
     error): the truncation curve; each PCA share's target is read off it. Then, keeping the
-    components of the middle share (the encoder's), the codec's step search (`search.largest_step`, the root
+    components of the encoder's share (`_shares`' one), the codec's step search (`search.largest_step`, the root
     step a fixed share of the pose step as in the codec) finds the step meeting the whole budget, and gamma
     follows from the combination rule (see ByteProxy).
     """
@@ -467,9 +467,9 @@ def _calibrate_clip(index: int):
     below, above = np.log(targets) < lj[0], np.log(targets) > lj[-1]  # outside: proportional
     shares[below] = pose_err[-1] * targets[below] / joint_err[-1]
     shares[above] = pose_err[0] * targets[above] / joint_err[0]
-    # the middle share's components, then the step search on pose and root together
-    middle = np.log(targets[len(targets) // 2])
-    q0 = int(round(np.exp(np.interp(middle, lj, np.log(qs)[::-1])))) if middle >= lj[0] else qs[-1]
+    # the encoder's share's components, then the step search on pose and root together
+    aim = np.log(targets[0])
+    q0 = int(round(np.exp(np.interp(aim, lj, np.log(qs)[::-1])))) if aim >= lj[0] else qs[-1]
     q0 = min(max(q0, 1), m)
     transform = get_stage("transform", settings.transform)
     truncated = pca.mean + coef[:, :q0] @ pca.components[:, :q0].T
@@ -624,14 +624,14 @@ def plan(clips, k: int | None, settings, *, max_k: int | None = None, seed: int 
 
 def _anneal_dims(stats, proxy: ByteProxy) -> int:
     """Subspace dimension for annealing: the median over clips of the components one class of
-    everything needs to meet the middle PCA share, the encoder's (so the subspaces are as large as coded ones)."""
+    everything needs to meet the encoder's PCA share (`_shares`' one: tolerance column 0), so the
+    subspaces are as large as coded ones."""
     pca = _pca(stats)
-    s = len(_shares(proxy.settings)) // 2
     need = []
     for i, st in enumerate(stats):
         gram = pca.components.T @ (proxy.weights[i][:, None] * pca.components)
         residual = _weighted_truncation(st, pca.mean, pca.components, gram)
-        hits = np.flatnonzero(residual <= proxy.tolerance[i, s] ** 2)
+        hits = np.flatnonzero(residual <= proxy.tolerance[i, 0] ** 2)
         need.append(int(hits[0]) if hits.size else len(residual) - 1)
     return max(int(np.median(need)), 1)
 

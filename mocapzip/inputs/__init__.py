@@ -1,3 +1,4 @@
 """Getting clips in: which files are clips and which skeleton each pairs with (`discover`), a
-clip loaded in its representation and scored against a decode (`clip`), and `mcz inspect`
-(`inspect`). Parsers of the file formats themselves live in `mocapzip.formats` (formats/)."""
+clip loaded in its representation and scored against a decode (`clip`), glitches in the source
+(`glitches`), and `mcz inspect` (`inspect`). Parsers of the file formats themselves live in
+`mocapzip.formats` (formats/)."""

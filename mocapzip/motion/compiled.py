@@ -247,7 +247,7 @@ def _pairwise_sum(a, lo, n):
 @njit(cache=True, nogil=True)
 def np_sum(a):
     """np.sum of a contiguous 1-D float64 array (add.reduce: pairwise summation), bit for bit
-    as checked in compare.py."""
+    as `tests/test_compiled_decode.py` checks."""
     return _pairwise_sum(a, 0, a.shape[0])
 
 
@@ -857,24 +857,6 @@ def fk_positions(values, parents, link, vct, axis0, col_start, nchan, chan_kind,
         _fk_frame(values, f, every, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                   to_rad, cm_per_unit, W, out[f])
     return out
-
-
-@njit(cache=True, nogil=True)
-def joint_distance_stats(original, decoded):
-    """(mean, max) of metrics.joint_distances(original, decoded) (mean as np.mean: pairwise sum)."""
-    F, J, _ = original.shape
-    d = np.empty(F * J)
-    mx = -math.inf
-    for f in range(F):
-        for j in range(J):
-            x = decoded[f, j, 0] - original[f, j, 0]
-            y = decoded[f, j, 1] - original[f, j, 1]
-            z = decoded[f, j, 2] - original[f, j, 2]
-            v = math.sqrt(x * x + y * y + z * z)
-            d[f * J + j] = v
-            if v > mx or v != v:
-                mx = v
-    return np_sum(d) / (F * J), mx
 
 
 @njit(cache=True, nogil=True)

@@ -14,6 +14,11 @@
 `get_representation(name, axes_from_positions=True)` leaves out the axes of bones
 whose rotation follows from the joint positions (`positions.solved_bones`; CMU:
 183 -> 132 and 180 -> 129 values), as the codec does since format 4.
+
+One module each: `channels.py`, `positions.py`, `aligned.py`, `scaled.py`, `normalised.py`, on
+`base.py` (the `Representation` stage and the `Encoded` it returns); `universal.py` is the
+universal body `scaled` and `normalised` map clips to, and `weighted.py` the codec's weighted pose
+space and the one decode tail back to AMC channels.
 """
 
 from __future__ import annotations

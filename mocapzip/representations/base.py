@@ -9,13 +9,15 @@ import numpy as np
 from mocapzip.motion.skeleton import SkeletonModel
 from mocapzip.stages import Stage
 
+ROOT_TRACK_WIDTH = 4  # a root track's values per frame: x, y, z (cm) and yaw (rad)
+
 
 @dataclass
 class Encoded:
     """One clip in a representation: what the codec compresses.
 
     `poses` is the (frames x M) matrix, one pose per row. `root` is the separate
-    root-motion track (frames x 4: x, y, z in cm and yaw in radians, unwrapped)
+    root-motion track (frames x ROOT_TRACK_WIDTH: x, y, z in cm and yaw in radians, unwrapped)
     for the aligned family, None otherwise. `params` holds the few per-clip
     values the inverse needs (e.g. the height scale), small enough to store as is, and
     `params["twist"]`, a `positions.TwistChoice` for solved bones (absent: the default).

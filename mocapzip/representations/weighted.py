@@ -12,7 +12,7 @@ from mocapzip.motion import compiled
 from mocapzip.motion.rotations import AXIS_INDEX
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.representations import aligned
-from mocapzip.representations.base import Representation
+from mocapzip.representations.base import ROOT_TRACK_WIDTH, Representation
 from mocapzip.representations.normalised import rescale_bones
 from mocapzip.representations.positions import TwistChoice, marker_width, stored_axes, twisted_bones
 
@@ -201,8 +201,8 @@ class DecodeTail:
         if poses.ndim != 2 or poses.shape[1] != self.marker_width:
             raise ValueError(f"poses have shape {poses.shape}, this skeleton needs (frames, {self.marker_width})")
         has_track = not self.with_root
-        if has_track and (root is None or np.shape(root) != (n_frames, 4)):
-            raise ValueError(f"root track has shape {np.shape(root)}, expected ({n_frames}, 4)")
+        if has_track and (root is None or np.shape(root) != (n_frames, ROOT_TRACK_WIDTH)):
+            raise ValueError(f"root track has shape {np.shape(root)}, expected ({n_frames}, {ROOT_TRACK_WIDTH})")
         weights = self.weights
         if self.name == "normalised":  # its bone lengths are rescaled in numpy first
             poses = rescale_bones(self.model, poses / weights, 1.0 / self.params["norm"])
@@ -212,7 +212,7 @@ class DecodeTail:
             reference = np.zeros((1, max(len(self.twisted), 1), 3, 3))
         if flips is None:
             flips = np.zeros((len(self.twisted), n_frames), np.bool_)
-        root = np.zeros((1, 4)) if root is None else np.ascontiguousarray(root, dtype=np.float64)
+        root = np.zeros((1, ROOT_TRACK_WIDTH)) if root is None else np.ascontiguousarray(root, dtype=np.float64)
         return compiled.decode_channels(
             poses, weights, self.position_divisor, self.scaled_columns, root, has_track, self.with_root,
             self.parents, self.faux, self.position_column, self.y_column, self.x_column, self.root_axes_column,

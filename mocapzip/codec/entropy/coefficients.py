@@ -20,7 +20,7 @@ uses what is known about the layout:
 
 Measured on CMU clips at 1 cm (`python benchmarks/ratio_distortion.py` and
 the notes in docs/benchmarks.md), this is 25-35 % smaller than the best zstd
-layout of `entropy.encode_sparse`.
+layout of `entropy.zstd.encode_sparse`.
 
 Models restart for every call, so a clip decodes without any other clip.
 Several matrices can share one stream (`encode_matrices`), each with its own

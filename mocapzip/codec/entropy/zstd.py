@@ -1,8 +1,10 @@
 """Lossless coding of integer arrays and byte blobs with zstandard.
 
-Every other codec stage ends here: whatever it produces (quantised
-coefficients, prediction residuals, tables) is an integer array, and this
-module turns it into bytes as small as zstd can make them.
+What the range coder and the rANS coder do not code ends here: the byte
+streams (meta, the skeletons' text, priors, warping paths), the lossless
+channel coder's integer sections, format 1's coefficient layouts (decoded
+by `archive.legacy`) and the size estimates of `--classes auto`. Each
+integer array becomes bytes as small as zstd can make them.
 
 zstd alone does poorly on raw little-endian integers, so each array is first
 rearranged into one of three layouts, and the smallest result is kept:
