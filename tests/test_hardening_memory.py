@@ -94,3 +94,49 @@ def test_a_clip_read_again_warns_once(tmp_path, shared_data):
         _, tracker = compressed(tmp_path, tmp_path / "db.mcz", Settings(), jobs=1, cache_bytes=0)
     assert tracker.reads > 1  # read again for the component search and the coding
     assert [str(w.message).count("last frame 444 is incomplete") for w in caught].count(1) == 1
+
+
+def test_a_long_clip_decodes_the_same_a_range_of_joints_at_a_time(shared_data, monkeypatch):
+    """The decode kernel keeps local rotations for the joints of one call only (`weighted.
+    LOCAL_ROTATIONS_BYTES`): one joint a call gives the channels and flips of all joints at once."""
+    import numpy as np
+
+    from mocapzip.archive import Archive
+    from mocapzip.representations import weighted
+
+    golden = Path(__file__).parent / "golden"
+    with Archive(sorted(golden.glob("lossy_v*.mcz"), key=lambda p: int(p.stem.split("_v")[1]))[-1]) as archive:
+        whole = [archive.decode(k).values for k in range(len(archive.clips))]
+    monkeypatch.setattr(weighted, "LOCAL_ROTATIONS_BYTES", 1)
+    with Archive(sorted(golden.glob("lossy_v*.mcz"), key=lambda p: int(p.stem.split("_v")[1]))[-1]) as archive:
+        by_joint = [archive.decode(k).values for k in range(len(archive.clips))]
+    assert all(np.array_equal(a, b) for a, b in zip(whole, by_joint))
+
+
+@pytest.mark.slow
+def test_a_clip_at_the_limits_decodes_within_1_gb_on_every_thread(shared_data, tmp_path):
+    """A 41 KB archive of one clip of 135,300 frames (CMU's 62 channels at MAX_VALUES_PER_CLIP):
+    `mcz test` on two threads ended in a MemoryError under a 1 GB address-space limit, the local
+    rotations of its 31 joints over all frames taking 300 MB at once."""
+    import dataclasses
+
+    import numpy as np
+
+    import limited
+    from mocapzip.formats.amc import format_amc, read_amc
+    from mocapzip.formats.asf import read_asf
+    from mocapzip.limits import MAX_VALUES_PER_CLIP
+
+    folder = tmp_path / "long"
+    folder.mkdir()
+    asf = shared_data / "cmu" / "09" / "09.asf"
+    (folder / "09.asf").write_bytes(asf.read_bytes())
+    take = read_amc(shared_data / "cmu" / "09" / "09_01.amc", read_asf(asf))
+    frames = MAX_VALUES_PER_CLIP // take.values.shape[1]
+    there_and_back = np.concatenate([take.values, take.values[::-1]])  # real motion, walked to and fro
+    values = np.resize(there_and_back, (frames, take.values.shape[1]))
+    (folder / "long.amc").write_text(format_amc(dataclasses.replace(take, values=values,
+                                                                    frame_numbers=np.arange(1, frames + 1))))
+    compress([folder], tmp_path / "long.mcz", Settings(error_cm=1.0))
+    run = limited.run_mcz("test", tmp_path / "long.mcz", "-j", "2", memory=1 << 30)
+    assert run.returncode == 0 and "OK (1 clip)" in run.stderr, run.stderr

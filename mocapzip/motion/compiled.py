@@ -398,16 +398,20 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
                     solved, sol_u, sol_nrot, sol_a0, sol_a1, sol_radius, sol_phase, sol_ref,
                     ref, use_ref, flips_in, axis,
                     col_start, nchan, chan_kind, chan_axis, nrot, rot_axes, rot_k,
-                    cm_per_unit, from_rad, width):
+                    cm_per_unit, from_rad, width, values, j_lo, j_hi):
     """Weighted poses (F, M) [+ root track (F, 4)] -> AMC channel values (F, width), and the
     twist flips of the 2-dof solved bones (NR, F): `channels_from_weighted` for the marker
-    representations (positions / aligned / scaled; normalised after its numpy pre-pass)."""
+    representations (positions / aligned / scaled; normalised after its numpy pre-pass).
+
+    Written into `values` (F, width): every channel but the rotations of joints outside
+    [j_lo, j_hi), whose local rotations over all frames are kept for their Euler fits (72 bytes
+    a joint and frame); a long clip is decoded in several calls, a range of joints each, and
+    each call writes the same numbers for what they share (`DecodeTail.channels`)."""
     F = poses.shape[0]
-    J = parents.shape[0]
     NR = flips_in.shape[0]
-    values = np.zeros((F, width))
+    J = parents.shape[0]
     flips_out = np.zeros((NR, F), dtype=np.bool_)
-    locals_ = np.empty((J * F, 3, 3))  # joint j's local rotations at rows j F to (j + 1) F
+    locals_ = np.empty(((j_hi - j_lo) * F, 3, 3))  # joint j's local rotations at rows (j - j_lo) F on
     pos = np.zeros((J, 3))
     R = np.empty((J, 3, 3))
     W = np.empty((J, 3, 3))
@@ -589,18 +593,21 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
                     for k in range(3):
                         t1[i, k] = W[j, 0, i] * c_j[k, 0] + W[j, 1, i] * c_j[k, 1] + W[j, 2, i] * c_j[k, 2]
                 p = parents[j]
-                if p < 0:
-                    # t1^T @ C^T
-                    for i in range(3):
-                        for k in range(3):
-                            locals_[j * F + f, i, k] = (t1[0, i] * c_j[k, 0] + t1[1, i] * c_j[k, 1]
-                                                        + t1[2, i] * c_j[k, 2])
-                else:
-                    for i in range(3):
-                        for k in range(3):
-                            t2[i, k] = W[p, 0, i] * c_j[k, 0] + W[p, 1, i] * c_j[k, 1] + W[p, 2, i] * c_j[k, 2]
-                    _mtm(t1, t2, t3)
-                    _store(t3, locals_, j * F + f)
+                if j_lo <= j < j_hi:
+                    row = (j - j_lo) * F + f
+                    if p < 0:
+                        # t1^T @ C^T
+                        for i in range(3):
+                            for k in range(3):
+                                locals_[row, i, k] = (t1[0, i] * c_j[k, 0] + t1[1, i] * c_j[k, 1]
+                                                      + t1[2, i] * c_j[k, 2])
+                    else:
+                        for i in range(3):
+                            for k in range(3):
+                                t2[i, k] = (W[p, 0, i] * c_j[k, 0] + W[p, 1, i] * c_j[k, 1]
+                                            + W[p, 2, i] * c_j[k, 2])
+                        _mtm(t1, t2, t3)
+                        _store(t3, locals_, row)
             for k in range(nchan[j]):
                 if chan_kind[j, k] == 1:
                     ax = chan_axis[j, k]
@@ -609,12 +616,12 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
     # euler fits per joint, over the frames given (continuity depends on them)
     angles = np.empty((3, F))
     work = np.empty((3, F))
-    for j in range(J):
+    for j in range(j_lo, j_hi):
         cs = col_start[j]
         n = nrot[j]
         if cs < 0 or n == 0:
             continue
-        lj = locals_[j * F:(j + 1) * F]
+        lj = locals_[(j - j_lo) * F:(j - j_lo + 1) * F]
         if n == 3:
             _euler3(lj, rot_axes[j, 0], rot_axes[j, 1], rot_axes[j, 2], angles, work, sa, sb, t1, t2, m)
         elif n == 2:

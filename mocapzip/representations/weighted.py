@@ -16,6 +16,12 @@ from mocapzip.representations.base import ROOT_TRACK_WIDTH, Representation
 from mocapzip.representations.normalised import rescale_bones
 from mocapzip.representations.positions import TwistChoice, marker_width, stored_axes, twisted_bones
 
+# The decode kernel keeps each joint's local rotations over all frames for its Euler fits, 72 bytes
+# a joint and frame: a clip at the limits (135,300 frames of 31 joints) took 300 MB at once, and
+# with the rest passed 1 GB of address space. Beyond this many bytes it runs again per range of
+# joints (`channels`): the same numbers, the frame loop once more per range (clips over ~28,000 frames).
+LOCAL_ROTATIONS_BYTES = 64 << 20
+
 
 def pose_weights(model: SkeletonModel, representation_name: str, width: int, axis_weight_cm: float) -> np.ndarray:
     """Per-column weights of a pose: joint positions (cm) count 1, bone axis vectors (unit
@@ -213,14 +219,20 @@ class DecodeTail:
         if flips is None:
             flips = np.zeros((len(self.twisted), n_frames), np.bool_)
         root = np.zeros((1, ROOT_TRACK_WIDTH)) if root is None else np.ascontiguousarray(root, dtype=np.float64)
-        return compiled.decode_channels(
-            poses, weights, self.position_divisor, self.scaled_columns, root, has_track, self.with_root,
-            self.parents, self.faux, self.position_column, self.y_column, self.x_column, self.root_axes_column,
-            self.root_proxy, self.solved, self.bone_direction, self.solved_dofs, self.solved_first_axis,
-            self.solved_second_axis, self.solved_radius, self.solved_phase, self.twist_index, reference,
-            use_reference, np.ascontiguousarray(flips), self.axis, self.first_column, self.n_channels,
-            self.channel_kind, self.channel_axis, self.n_rotations, self.rotation_axes, self.rotation_channel,
-            float(self.model.cm_per_unit), 1.0 / self.to_rad, self.width)
+        values = np.zeros((n_frames, self.width))
+        joints = len(self.parents)
+        per_call = max(1, LOCAL_ROTATIONS_BYTES // (72 * max(n_frames, 1)))  # joints whose rotations fit
+        for first in range(0, joints, per_call):
+            values, out_flips = compiled.decode_channels(
+                poses, weights, self.position_divisor, self.scaled_columns, root, has_track, self.with_root,
+                self.parents, self.faux, self.position_column, self.y_column, self.x_column, self.root_axes_column,
+                self.root_proxy, self.solved, self.bone_direction, self.solved_dofs, self.solved_first_axis,
+                self.solved_second_axis, self.solved_radius, self.solved_phase, self.twist_index, reference,
+                use_reference, np.ascontiguousarray(flips), self.axis, self.first_column, self.n_channels,
+                self.channel_kind, self.channel_axis, self.n_rotations, self.rotation_axes, self.rotation_channel,
+                float(self.model.cm_per_unit), 1.0 / self.to_rad, self.width, values, first,
+                min(joints, first + per_call))
+        return values, out_flips
 
     def positions(self, values: np.ndarray) -> np.ndarray:
         """Forward kinematics of channel `values`: joint positions (F, J, 3) in cm."""
