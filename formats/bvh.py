@@ -18,6 +18,7 @@ the file used (`BvhStyle`, found on a sample of its frames).
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
 from collections.abc import Callable
@@ -421,10 +422,11 @@ class _Parser:
         """(frames, frame time, offset of the first frame in the text, its line)."""
         self.check_line_ends(self.motion_line + 2)
         lines = _lines_with_ends(self.text, self.motion_line + 2)
-        ends = np.cumsum([len(line) for line in lines[self.motion_line - 1 :]])
+        ends = list(itertools.accumulate(len(line) for line in lines[self.motion_line - 1 :]))
         if ends[-1] > MAX_MOTION_CHARS:
             raise self.fail(f"the lines MOTION, Frames: and Frame Time: take more than the {MAX_MOTION_CHARS:,} "
-                            "characters they may", self.motion_line + int(np.argmax(ends > MAX_MOTION_CHARS)))
+                            "characters they may", self.motion_line + next(k for k, end in enumerate(ends)
+                                                                           if end > MAX_MOTION_CHARS))
         frames, frame_time = _motion_numbers(lines[self.motion_line :], self.motion_line + 1, self.path)
         return frames, frame_time, sum(len(line) for line in lines), self.motion_line + 3
 

@@ -83,9 +83,11 @@ def _finite(text: str) -> float:
 
 
 def _unique_keys(pairs: list) -> dict:
-    doc = dict(pairs)
-    if len(doc) != len(pairs):
-        raise ValueError(f"a key appears twice in an object: {next(k for k in doc if [p[0] for p in pairs].count(k) > 1)!r}"[:120])
+    doc = {}
+    for key, value in pairs:
+        if key in doc:
+            raise ValueError(f"a key appears twice in an object: {key[:80]!r}")
+        doc[key] = value
     return doc
 
 

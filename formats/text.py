@@ -22,10 +22,17 @@ import secrets
 import stat
 from pathlib import Path
 
+import numpy as np
+
 from mocapzip.formats.errors import MocapFormatError
 
 MAX_ABS_VALUE = 1e9
 """Largest accepted magnitude of any number in an ASF or AMC file (limits may be +-inf)."""
+
+
+def in_value_range(values) -> bool:
+    """Whether every one of `values` is a number a reader takes back: not NaN, within +-MAX_ABS_VALUE."""
+    return bool(np.all(np.abs(values) <= MAX_ABS_VALUE))
 
 NUMBER = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
 WHITESPACE = b" \t\r\n\x0b\x0c"  # what bytes.split() splits on

@@ -10,7 +10,6 @@ A failure is one `ArchiveError` naming the archive and the field.
 from __future__ import annotations
 
 import functools
-import json
 import math
 import fastjsonschema
 import pywt
@@ -184,8 +183,6 @@ def _schema_check(detailed: bool):
     0.03 s more to compile in every process that opens an archive; meta that fails is checked
     again with them, for the failing field's name and the whole problem (`validate`)."""
     return fastjsonschema.compile(SCHEMA, detailed_exceptions=detailed)
-
-
 
 
 def validate(meta, stream_names: list[str], archive_path: str, format_version: int) -> dict[str, tuple[str, int]]:
@@ -432,12 +429,12 @@ def contents_of(meta: dict, format_version: int | None = None) -> dict:
     and anyone without mcz to read. Readers never use it; `mcz test` checks it against meta.
     `format_version`: the archive's (default: the newest), which decides the columns."""
     fps, skeletons = meta["settings"]["fps"], meta["skeletons"]
-    if format_version is not None and format_version < 12:
-        return {"columns": _CONTENTS_COLUMNS_BEFORE_12,
-                "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"]]
-                          for row in meta["clips"]]}
-    return {"columns": CONTENTS_COLUMNS,
+    with_errors = format_version is None or format_version >= 12
+
+    def errors(row: dict) -> list:
+        return [None if error is None else round(error, CONTENTS_ERROR_DECIMALS)
+                for error in (row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"])] if with_errors else []
+
+    return {"columns": CONTENTS_COLUMNS if with_errors else _CONTENTS_COLUMNS_BEFORE_12,
             "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"],
-                       *(None if error is None else round(error, CONTENTS_ERROR_DECIMALS)
-                         for error in (row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"]))]
-                      for row in meta["clips"]]}
+                       *errors(row)] for row in meta["clips"]]}

@@ -41,7 +41,7 @@ from mocapzip.formats.asf import parse_asf
 from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
-from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, write_file_atomically
+from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, in_value_range, write_file_atomically
 from mocapzip.limits import MAX_ABS_POSE, MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
@@ -267,7 +267,7 @@ class Archive:
 
     def _check_range(self, index: int, values: np.ndarray) -> None:
         """ArchiveError for a value no reader would take back: NaN, or beyond +-MAX_ABS_VALUE."""
-        if not np.all(np.abs(values) <= MAX_ABS_VALUE):
+        if not in_value_range(values):
             raise ArchiveError(f"clip/{index:05d} ({self.clips[index]['path']}): damaged (decoded values beyond "
                                f"+-{MAX_ABS_VALUE:g}, which no reader accepts)", self.path)
 

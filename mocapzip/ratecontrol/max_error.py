@@ -24,7 +24,7 @@ import numpy as np
 from mocapzip.codec.patches import MAX_LEVEL, FramePatches, channel_steps, frame_steps
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import MAX_ABS_VALUE
+from mocapzip.formats.text import MAX_ABS_VALUE, in_value_range
 from mocapzip.inputs.glitches import glitch_mask, repaired_ranges
 from mocapzip.motion import compiled
 from mocapzip.motion.contacts import contacts
@@ -139,7 +139,7 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
 def _check_range(clip, values: np.ndarray) -> None:
     """TargetError where a decoded value would pass +-MAX_ABS_VALUE: the decoder refuses such an
     archive (`Archive._check_range`), so a source value at the limit cannot be coded lossy."""
-    if not np.all(np.abs(values) <= MAX_ABS_VALUE):
+    if not in_value_range(values):
         raise TargetError(f"its decoded values would pass +-{MAX_ABS_VALUE:g}, the most any file may hold (values "
                           "that close to the limit cannot be coded lossy); use --lossless", clip.source.amc)
 
