@@ -9,12 +9,11 @@ import json
 import numpy as np
 import pytest
 
-from mocapzip.classes.auto import (ByteProxy, ClipStats, _largest_step, _Moments, _pca, _weighted_truncation, anneal,
-                                kss_ppca, parse_auto, plan)
+from mocapzip.classes.auto import _Moments, anneal, kss_ppca, parse_auto, plan
 from mocapzip.codec.pca import PcaBasis
-from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.classes.ppca import PpcaModel
+from mocapzip.ratecontrol.class_bytes import ByteProxy, ClipStats, _weighted_truncation, union_pca
 
 
 def subspace_clips(rng, groups=3, per_group=4, dim=12, rank=2, frames=60):
@@ -64,34 +63,15 @@ def test_stacked_moments_match_per_clip_statistics():
     stats, _ = subspace_clips(np.random.default_rng(3))
     moments = _Moments.of(stats)
     weights = np.random.default_rng(4).uniform(0, 1, len(stats))
-    model = PpcaModel.from_pca(_pca(stats[:4]))
+    model = PpcaModel.from_pca(union_pca(stats[:4]))
     expected = [model.mean_log_density_from_stats(s.count, s.mean, s.scatter) for s in stats]
     np.testing.assert_allclose(moments.mean_log_densities(model), expected, rtol=1e-9)
-    pca, direct = moments.pca(weights), _pca(stats, weights)
+    pca, direct = moments.pca(weights), union_pca(stats, weights)
     np.testing.assert_allclose(pca.mean, direct.mean, rtol=1e-9)
     np.testing.assert_allclose(pca.variances, direct.variances, rtol=1e-7, atol=1e-9)
     basis = direct.components[:, :2]
     np.testing.assert_allclose(moments.residuals(direct.mean, basis),
                                [residual_per_frame(s, direct.mean, basis) for s in stats], rtol=1e-7, atol=1e-9)
-
-
-def test_largest_step_is_the_largest_within_budget():
-    """Regula falsi finds, to STEP_TOLERANCE, the step a fine bisection finds."""
-    rng = np.random.default_rng(6)
-    curves = np.cumsum(rng.normal(size=(400, 8)), axis=0) * np.linspace(4, 0.2, 8)
-    gains = rng.uniform(0.5, 3.0, 8)
-
-    def error(step):
-        q = UniformQuantiser(step, 0.2)
-        return float((((curves - q.dequantise(q.quantise(curves))) ** 2).sum(axis=0) * gains).sum())
-
-    for budget in (0.5, 40.0, 4000.0):
-        step = _largest_step(curves, gains, budget, 0.2)
-        lo, hi = np.log(1e-4), np.log(1e3)
-        for _ in range(40):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if error(np.exp(mid)) <= budget else (lo, mid)
-        assert error(step) <= budget and step == pytest.approx(np.exp(lo), rel=0.03)
 
 
 def test_weighted_truncation_from_stats_matches_frames():

@@ -94,13 +94,19 @@ class PcaBasis:
 
     @classmethod
     def fit(cls, accumulator: CovarianceAccumulator) -> "PcaBasis":
-        variances, components = np.linalg.eigh(accumulator.covariance)
+        return cls.from_covariance(accumulator.mean, accumulator.covariance, accumulator.count)
+
+    @classmethod
+    def from_covariance(cls, mean, covariance, count: int) -> "PcaBasis":
+        """The basis of a mean and covariance however they were summed (`fit`'s, or a weighted
+        union of clips' statistics), sorted and signed by the one rule above."""
+        variances, components = np.linalg.eigh(covariance)
         order = np.argsort(variances)[::-1]
         variances = np.maximum(variances[order], 0.0)  # rounding can give tiny negatives
         components = components[:, order]
         largest = np.argmax(np.abs(components), axis=0)
         signs = np.sign(components[largest, np.arange(components.shape[1])])
-        return cls(accumulator.mean, components * signs, variances, accumulator.count)
+        return cls(mean, components * signs, variances, count)
 
     def project(self, rows, q: int) -> np.ndarray:
         """Coordinates of the rows (N x dim) on the first q components (N x q)."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from typing import Callable
 
+import numpy as np
+
 
 def smallest_count(error_at: Callable[[int], float], target: float, lo: int, hi: int) -> int:
     """Smallest count n in [lo, hi] with error_at(n) <= target, assuming error falls as n grows.
@@ -127,3 +129,44 @@ def _where_fit_meets(scores: dict[float, float], lo: float, hi: float, target: f
         if squared > 0 and math.sqrt(squared) >= hi:
             return hi
     return math.sqrt(lo * hi)
+
+
+def largest_step_power_law(error_at: Callable[[float], float], target: float, lo: float, hi: float, start: float,
+                           log_tol: float) -> float:
+    """Largest step in [lo, hi] whose error is <= target, to within `log_tol` in log step, for an
+    error with no floor that grows about like a power of the step (quantisation error alone).
+
+    Regula falsi on log error against log step (Illinois variant, the bracket always holding a
+    step that meets the target and one that does not) takes a handful of scores where plain
+    bisection takes 16. `start`, a step that meets the target, is the bracket's lower end (kept
+    in [lo, hi]); `hi` is returned if it meets the target, `lo` if the target is not positive,
+    and the lower end if it misses after all.
+    """
+    if target <= 0:
+        return lo
+
+    def excess(log_step: float) -> float:  # log(error / target): <= 0 meets the target
+        return float(np.log(max(error_at(float(np.exp(log_step))), 1e-300) / target))
+
+    top = np.log(hi)
+    f_top = excess(top)
+    if f_top <= 0:
+        return hi
+    bottom = float(np.clip(np.log(start), np.log(lo), top))
+    f_bottom = excess(bottom)
+    if f_bottom > 0:
+        return float(np.exp(bottom))
+    kept = 0  # which end the last trials kept: halve its value when kept twice (Illinois)
+    while top - bottom > log_tol:
+        x = bottom - f_bottom * (top - bottom) / (f_top - f_bottom)
+        x = min(max(x, bottom + 0.01 * (top - bottom)), top - 0.01 * (top - bottom))
+        f = excess(x)
+        if f <= 0:
+            bottom, f_bottom = x, f
+            f_top = f_top / 2 if kept == 1 else f_top
+            kept = 1
+        else:
+            top, f_top = x, f
+            f_bottom = f_bottom / 2 if kept == -1 else f_bottom
+            kept = -1
+    return float(np.exp(bottom))

@@ -184,7 +184,7 @@ _ESTIMATOR = zstandard.ZstdCompressor(level=9)
 
 def estimated_size(ints) -> int:
     """About the bytes `encode_sparse` takes for an integer array, at a faster zstd level (the
-    dense and bit-length layouts of C order only): for size estimates (`classes.auto`)."""
+    dense and bit-length layouts of C order only): for size estimates (`ratecontrol.class_bytes`)."""
     codes = _to_codes(_as_int_array(ints).ravel(order="C"))
     lengths, verbatim = split_leading_bits(codes)
     return 8 + min(len(_ESTIMATOR.compress(_planes(codes))), len(_ESTIMATOR.compress(lengths.tobytes())) + len(verbatim))
