@@ -180,7 +180,7 @@ class ByteProxy:
         residual, gains, needed = self._truncations(members, pca)
         q = max(needed)
         basis = _basis_bytes(pca, q, settings) + CLASS_OVERHEAD_BYTES
-        # the transform works per curve: transform each clip's curves once
+        # each clip's curves on the q components (on one at q = 0, for the transform; none is kept)
         curves = [transform.forward((self.poses[i] - pca.mean) @ pca.components[:, :max(q, 1)]) for i in members]
         clip_bytes = sum(_clip_bytes(curves[row][:, :q], gains[row][:q],
                                      self.quantisation_allowance(i, residual[row, q]), settings.dead_zone)
