@@ -9,10 +9,16 @@ Lengths in cm, angles in degrees; the rest pose (all channels 0) is the ASF's ba
 frame rate is the clip's (`inputs.clip.clip_frame_rate`).
 
 BVH -> ASF/AMC. The codec's model of the hierarchy (`motion.bvh_skeleton`) is an Acclaim
-skeleton already: its bones (links named "P>child") become ASF bones in cm with identity
-axes, the BVH rotation channels their dofs, in reverse order (the BVH file's turn order). The
-clip must be what lossy coding takes: an extra root above the hips that stands still at 0, and
-no position channels moving but the root's.
+skeleton already: its bones (links named "P>child") become ASF bones, lengths in cm
+(`:units length 2.54`: file units per inch, as CMU's 0.45 is). Dofs are in the order CMU's files
+and most readers take them, the root's `TX TY TZ RX RY RZ` and a bone's `rx ry rz` (x turns
+first), while a BVH joint's rotation channels turn in their own order (Bandai's and CMU's
+`Zrotation Xrotation Yrotation`: y, then x, then z). A bone whose channels turn in another order
+keeps the BVH's angles, in the order of its axes, and gets an `axis` (multiples of 90 degrees)
+that makes them turn as the BVH's (`_bone_in_acclaim_order`); the root, whose frame readers take
+to be the identity, gets the same turn's `rx ry rz` angles (`_root_in_acclaim_order`). The clip
+must be what lossy coding takes: an extra root above the hips that stands still at 0, and no
+position channels moving but the root's.
 
 Names (docs/bvh.md, "Names"): a name is written as it is where both formats hold it and it holds no
 %XX; else it is escaped (`_escaped`), so that no two names are written alike. ASF -> BVH escapes
@@ -22,16 +28,16 @@ were. BVH -> ASF: an ASF keeps the BVH name of each bone that would not come bac
 
 Every file is read back, as written, by mcz's own readers before anything is written: one they
 would refuse (a hierarchy past a limit of `mocapzip.limits`) or read as anything else, or with a
-joint moved by more than READ_BACK_CM, stops the clip's conversion (`_bvh_read_back`,
-`_asf_amc_read_back`).
+joint more than READ_BACK_CM from where the source clip has it, stops the clip's conversion
+(`_bvh_read_back`, `_asf_amc_read_back`).
 
 Joint positions agree within TOLERANCE_CM: a BVH is written with 6 decimals (`%.6f`: an angle
 unwrapped far past 360 keeps its precision), an AMC with 6 significant digits, each with more
-(`BVH_NUMBERS`, `AMC_DIGITS`) where these would move a joint by more than READ_BACK_CM (an AMC
-angle of 12,345.678 degrees, a root 1,234,567.891 cm from the origin). Every clip is read and
-converted before any file is written, each file is written whole
-(`formats.text.write_file_atomically`), into folders that are folders (`formats.text.check_folders`);
-no input is ever written over.
+(`BVH_NUMBERS`, `AMC_DIGITS`) where these would move a joint by more than READ_BACK_CM (a root's
+angles unwrapped to -1,470 degrees, an AMC angle of 12,345.678 degrees, a root 1,234,567.891 cm
+from the origin). Every clip is read and converted before any file is written, each file is
+written whole (`formats.text.write_file_atomically`), into folders that are folders
+(`formats.text.check_folders`); no input is ever written over.
 """
 
 from __future__ import annotations
@@ -53,16 +59,21 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import NUMBER, check_folders, write_file_atomically
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
 from mocapzip.inputs.discover import find_clips, is_bvh, no_clips, record_skip
-from mocapzip.motion.bvh_skeleton import bvh_skeleton, file_positions
+from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_positions, point_names
 from mocapzip.motion.kinematics import forward
-from mocapzip.motion.rotations import euler_angles
+from mocapzip.motion.rotations import euler_angles, euler_matrix
 from mocapzip.motion.skeleton import SkeletonModel
 from mocapzip.progress import progress
 
 TOLERANCE_CM = 0.01  # joint positions after a conversion, against the source's
 READ_BACK_CM = TOLERANCE_CM / 2  # how far a joint may move as the files written are read back: half of it
-AMC_DIGITS = (6, 17)  # significant digits of an AMC's values: CMU's, else every float64 read back as itself
+# significant digits of an AMC's values: CMU's; 7 (a Bandai dance: its root's angles, turned into `rx ry rz` and
+# unwrapped to -1,470 degrees, moved a joint by 0.0067 cm with 6); else every float64 read back as itself
+AMC_DIGITS = (6, 7, 17)
 BVH_NUMBERS = ("f6", "repr")  # a BVH's values: 6 decimals (an angle is within 180), else Python's repr
+ACCLAIM_ORDER = ("tx", "ty", "tz", "rx", "ry", "rz")  # an ASF's dofs as CMU's files have them
+# An ASF's units: `length` is file units per inch (CMU's 0.45), cm = value x 2.54 / length: at 2.54, values are cm
+ACCLAIM_UNITS = {"mass": "1.0", "length": "2.54", "angle": "deg"}
 NAME_RECORD = "bvh-name"  # an ASF documentation line `bvh-name <bone> <the BVH joint's name, as a JSON string>`
 # Whole names a format cannot hold: BVH's keywords, as BVH writes them; in any case, an ASF's root and
 # the words that open and close its blocks (a link bone to an End Site is "P>end")
@@ -97,11 +108,11 @@ def amc_to_bvh(skeleton: Skeleton, motion: Motion, fps: float) -> Bvh:
 
 
 def bvh_to_amc(bvh: Bvh, units: str | None = None) -> tuple[Skeleton, Motion]:
-    """The ASF skeleton and AMC clip with `bvh`'s joint positions (lengths in cm)."""
+    """The ASF skeleton and AMC clip with `bvh`'s joint positions (lengths in cm, `ACCLAIM_UNITS`),
+    the dofs in the order CMU's files have them (`_root_in_acclaim_order`, `_bone_in_acclaim_order`)."""
     if not bvh.n_frames:
         raise MocapFormatError("no frames to convert", bvh.path)
-    written = _asf_names(bvh.joints)
-    hierarchy = bvh_skeleton([replace(joint, name=name) for joint, name in zip(bvh.joints, written)], units, bvh.path)
+    written, hierarchy = _asf_hierarchy(bvh, units)
     hierarchy.check_fixed(bvh, why="an ASF skeleton's bones keep their length")
     if hierarchy.above_values(bvh) is not None:
         raise MocapFormatError(f"its extra root '{bvh.joints[0].name}' moves: an ASF skeleton has one root", bvh.path)
@@ -110,23 +121,83 @@ def bvh_to_amc(bvh: Bvh, units: str | None = None) -> tuple[Skeleton, Motion]:
     records = [f"{NAME_RECORD} {asf_name} {json.dumps(bvh_names[name], ensure_ascii=False)}"
                for name, asf_name in zip(model.names, [ROOT, *model.names[1:]])
                if name in bvh_names and bvh_names[name] != _bvh_name(asf_name)]  # link bones stand for no joint
-    values = np.array(motion.values)
-    values[:, [k for k, c in enumerate(model.channels[0]) if c[0] == "t"]] *= model.cm_per_unit  # the ASF is in cm
+    dofs, bone_axis, columns = {}, {}, []
+    for name, values in zip(motion.bones, np.split(motion.values, np.cumsum(motion.counts)[:-1], axis=1)):
+        channels = model.channels[model.index[name]]
+        if name == model.names[0]:
+            dofs[name], acclaim = _root_in_acclaim_order(channels, values)
+        else:
+            dofs[name], bone_axis[name], acclaim = _bone_in_acclaim_order(channels, values)
+        columns.append(acclaim * np.array([model.cm_per_unit if c[0] == "t" else 1.0 for c in dofs[name]]))  # cm
     bones = []
-    for j in range(1, model.n_joints):
+    for j, name in enumerate(model.names[1:], start=1):
         length = float(np.linalg.norm(model.offsets[j]))
         direction = model.offsets[j] / length if length else np.zeros(3)
-        bones.append(Bone(model.names[j], j, direction, length, np.zeros(3), "XYZ", model.channels[j]))
+        bones.append(Bone(name, j, direction, length, bone_axis.get(name, np.zeros(3)), "XYZ", dofs.get(name, ())))
     hierarchy = [(model.names[p], [model.names[k] for k in range(model.n_joints) if model.parents[k] == p])
                  for p in range(model.n_joints) if any(model.parents == p)]
-    skeleton = Skeleton(name=_skeleton_name(bvh.path), version="1.10",
-                        units={"mass": "1.0", "length": "cm", "angle": "deg"},
+    skeleton = Skeleton(name=_skeleton_name(bvh.path), version="1.10", units=dict(ACCLAIM_UNITS),
                         documentation=[f"fps:{bvh.fps!r}", "converted from BVH by mcz convert", *records],
-                        root_order=tuple(c.upper() for c in model.channels[0]), bones=bones,
+                        root_order=tuple(c.upper() for c in dofs[model.names[0]]), bones=bones,
                         hierarchy=[(p if p != model.names[0] else ROOT, kids) for p, kids in hierarchy])
     names = [ROOT if b == model.names[0] else b for b in motion.bones]
     frames = np.arange(1, motion.n_frames + 1)
-    return skeleton, Motion(names, list(motion.counts), values, frames, [":FULLY-SPECIFIED", ":DEGREES"], bvh.path)
+    return skeleton, Motion(names, [len(dofs[b]) for b in motion.bones], np.concatenate(columns, axis=1), frames,
+                            [":FULLY-SPECIFIED", ":DEGREES"], bvh.path)
+
+
+def _asf_hierarchy(bvh: Bvh, units: str | None) -> tuple[list[str], BvhSkeleton]:
+    """The ASF name of each of `bvh`'s joints (`_asf_names`), and the model of its hierarchy under
+    those names (`motion.bvh_skeleton`), which its ASF is."""
+    written = _asf_names(bvh.joints)
+    return written, bvh_skeleton([replace(joint, name=name) for joint, name in zip(bvh.joints, written)], units,
+                                 bvh.path)
+
+
+def _root_in_acclaim_order(channels: tuple[str, ...], values: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """The root's model `channels` ('tx', 'ry', ...; rotations in turning order) and their `values`
+    (frames, channels; degrees) as an ASF's root `order` and its AMC values: `TX TY TZ`, then
+    `RX RY RZ`. Rotations already turning x, y, z (or some of them) keep their angles; others (BVH's
+    `Zrotation Xrotation Yrotation` turns y, x, z) are the same turn as `rx ry rz` angles, frame by
+    frame, each frame's nearest the previous frame's (`motion.rotations.euler_angles`). The root's
+    frame stays the identity (`orientation 0 0 0`), which readers of CMU's files take it to be."""
+    translations = [k for c in ACCLAIM_ORDER[:3] for k, held in enumerate(channels) if held == c]
+    turns = [k for k, c in enumerate(channels) if c[0] == "r"]
+    axes = "".join(channels[k][1] for k in turns)
+    if axes == "".join(sorted(axes)):
+        return tuple(channels[k] for k in translations + turns), values[:, translations + turns]
+    angles = np.degrees(euler_angles(euler_matrix(np.radians(values[:, turns]), axes), "xyz"))
+    return tuple(channels[k] for k in translations) + ACCLAIM_ORDER[3:], np.hstack([values[:, translations], angles])
+
+
+def _bone_in_acclaim_order(channels: tuple[str, ...], values: np.ndarray) -> tuple[tuple[str, ...], np.ndarray,
+                                                                                   np.ndarray]:
+    """A bone's model `channels` (rotations in turning order: BVH's `Zrotation Xrotation Yrotation`
+    is 'ry', 'rx', 'rz') and their `values` (frames, channels; degrees) as the bone's ASF dofs, in
+    the order x, y, z, its `axis` (degrees, XYZ order) and its AMC values.
+
+    The bone's axis frame C turns the BVH's axes into the dofs': an Acclaim bone turns by
+    C^-1 M C, M its dofs' turn, and C^-1 R_t(s a) C = R_u(a) where row t of C is s e_u (the unit
+    vector of axis u, s = +-1). So the i-th channel in turning order, about axis u by angle a, is
+    the i-th dof in x, y, z order, about the axis t of C's row s e_u, by s a; the one row left (2
+    dofs) takes the axis left, and a sign makes C a rotation. Every angle is the BVH's, or its
+    negative: exact, with no gimbal lock the BVH has not (Bandai's shoulders, turned about y by
+    about 90 degrees, would be at the gimbal lock of `rx ry rz` about the parent's axes)."""
+    axes = "".join(c[1] for c in channels)
+    dofs = "".join(sorted(axes))
+    if axes == dofs:
+        return channels, np.zeros(3), values
+    c = np.zeros((3, 3))
+    rows = dofs + "".join(t for t in "xyz" if t not in dofs)
+    for t, u in zip(rows, axes + "".join(u for u in "xyz" if u not in axes)):
+        c["xyz".index(t), "xyz".index(u)] = 1.0
+    signs = np.ones(len(axes))
+    if np.linalg.det(c) < 0:  # a reflection: made a rotation by turning the last row (the axis left, or z)
+        c["xyz".index(rows[-1])] *= -1.0
+        if len(axes) == 3:  # z is a dof: its angles turn too
+            signs[-1] = -1.0
+    axis = np.round(np.degrees(euler_angles(c[None], "xyz")[0])) + 0.0  # multiples of 90 degrees; no -0
+    return tuple("r" + t for t in dofs), axis, values * signs
 
 
 def _skeleton_name(path: str | None) -> str:
@@ -186,16 +257,18 @@ def _targets(source) -> list[str]:
 
 
 def _converted(source, reader: ClipReader, units: str | None) -> list[bytes]:
-    """The bytes of the files a clip becomes (`_targets`), each checked to read back as written."""
+    """The bytes of the files a clip becomes (`_targets`), each checked to read back as written and
+    with the source clip's joint positions."""
     targets = _targets(source)
     if is_bvh(source.amc.name):
-        skeleton, motion = bvh_to_amc(read_bvh(source.amc), units)
+        bvh = read_bvh(source.amc)
+        skeleton, motion = bvh_to_amc(bvh, units)
         name_bytes = motion.n_frames * sum(len(name.encode("utf-8")) + 1 for name in motion.bones)
         if name_bytes > MAX_AMC_BYTES:  # refused before the text is made: names are repeated in every frame
             raise MocapFormatError(f"cannot be converted: its joint names alone would take {name_bytes:,} bytes of "
                                    f"its AMC file, which may have {MAX_AMC_BYTES:,}", source.amc)
         asf = format_asf(skeleton).encode("utf-8")
-        positions = _asf_positions(skeleton, motion)
+        positions = _asf_joints_in_bvh(bvh, units)
         for digits in AMC_DIGITS:
             written = replace(motion, style=AmcStyle(digits=digits))
             files = [format_amc(written).encode("utf-8"), asf]
@@ -205,7 +278,7 @@ def _converted(source, reader: ClipReader, units: str | None) -> list[bytes]:
         raise _moved(moved, source.amc)
     read = reader.motion(source)
     bvh = amc_to_bvh(read.skeleton, read.motion, clip_frame_rate(read.stated_fps, DEFAULT_FPS))
-    positions = file_positions(bvh, "cm")
+    positions = _asf_positions(read.skeleton, read.motion)
     for number in BVH_NUMBERS:
         written = replace(bvh, style=replace(bvh.style, number=number))
         files = [format_bvh(written).encode(written.encoding)]
@@ -220,16 +293,36 @@ def _asf_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:
     return forward(SkeletonModel.from_asf(skeleton), motion.values, motion).positions
 
 
+def _asf_joints_in_bvh(bvh: Bvh, units: str | None) -> np.ndarray:
+    """(frames, joints, 3) cm: the points of `bvh` that are the joints of its ASF (`bvh_to_amc`), in
+    the ASF model's order, where the BVH's channels put them."""
+    _, hierarchy = _asf_hierarchy(bvh, units)
+    at = {name: k for k, name in enumerate(point_names(hierarchy.joints))}
+    return file_positions(bvh, hierarchy.units)[:, [at[point] for point in hierarchy.model.points]]
+
+
+def _bvh_points_of_asf(joints: list[BvhJoint]) -> list[int]:
+    """Where each ASF joint is among the points (`point_names`) of the BVH `amc_to_bvh` made of it,
+    whose joint k is the ASF's joint k: the root at the root, a bone's end at its first child or at
+    its End Site."""
+    starts = np.cumsum([0] + [1 + (joint.end_site is not None) for joint in joints])
+    first_child = {}
+    for k in reversed(range(len(joints))):
+        first_child[joints[k].parent] = k
+    return [0 if j == 0 else int(starts[first_child[j]]) if j in first_child else int(starts[j]) + 1
+            for j in range(len(joints))]
+
+
 def _moved(moved: float, source) -> MocapFormatError:
-    return MocapFormatError(f"cannot be converted: mcz would read a joint back {moved:.3g} cm from where it is in the "
-                            f"files it becomes (more than {READ_BACK_CM:g} cm)", source)
+    return MocapFormatError(f"cannot be converted: mcz would read a joint back {moved:.3g} cm from where the clip "
+                            f"has it (more than {READ_BACK_CM:g} cm)", source)
 
 
 def _asf_amc_read_back(files: list[bytes], targets: list[str], skeleton: Skeleton, motion: Motion,
                        positions: np.ndarray, source) -> float:
-    """How far (cm) a joint of `positions` (`skeleton` and `motion`'s) moves as mcz reads `files`
-    (AMC, ASF) back; MocapFormatError naming `source` unless it reads them as the skeleton's bones
-    and hierarchy and the clip's bones, values per bone and frames."""
+    """How far (cm) a joint moves from `positions` (the source clip's, `_asf_joints_in_bvh`) as mcz
+    reads `files` (AMC, ASF) back; MocapFormatError naming `source` unless it reads them as the
+    skeleton's bones and hierarchy and the clip's bones, values per bone and frames."""
     amc, asf = files
     try:
         skeleton_read = parse_asf(asf, targets[1])
@@ -245,8 +338,9 @@ def _asf_amc_read_back(files: list[bytes], targets: list[str], skeleton: Skeleto
 
 
 def _bvh_read_back(data: bytes, target: str, bvh: Bvh, positions: np.ndarray, source) -> float:
-    """How far (cm) a joint or End Site of `positions` (`bvh`'s) moves as mcz reads `data` back;
-    MocapFormatError naming `source` unless it reads it as `bvh`'s joints and frames."""
+    """How far (cm) a joint of the source ASF moves from `positions` (its, in model order) as mcz
+    reads `data` back (`_bvh_points_of_asf`); MocapFormatError naming `source` unless it reads it as
+    `bvh`'s joints and frames."""
     try:
         read = parse_bvh(data, target)
     except MocapFormatError as exc:
@@ -254,7 +348,7 @@ def _bvh_read_back(data: bytes, target: str, bvh: Bvh, positions: np.ndarray, so
     if ([(j.name, j.parent, j.channels) for j in read.joints] != [(j.name, j.parent, j.channels) for j in bvh.joints]
             or read.n_frames != bvh.n_frames):
         raise MocapFormatError(f"cannot be converted: {target} would not read back as its joints", source)
-    return _farthest(file_positions(read, "cm"), positions)
+    return _farthest(file_positions(read, "cm")[:, _bvh_points_of_asf(read.joints)], positions)
 
 
 def _farthest(read: np.ndarray, meant: np.ndarray) -> float:

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from hostile_inputs import chain_skeleton
 from mocapzip import convert as convert_module
 from mocapzip.cli.main import main
-from mocapzip.convert import TOLERANCE_CM, bvh_to_amc, convert
+from mocapzip.convert import ACCLAIM_ORDER, TOLERANCE_CM, bvh_to_amc, convert
 from mocapzip.formats.amc import MAX_AMC_BYTES, format_amc, parse_amc, read_amc
 from mocapzip.formats.asf import format_asf, parse_asf, read_asf
 from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, read_bvh
@@ -33,7 +33,7 @@ from mocapzip.limits import MAX_BONES_PER_SKELETON
 from mocapzip.motion.bvh_skeleton import bvh_skeleton
 from mocapzip.motion.skeleton import SkeletonModel
 from test_bvh_pipeline import file_positions
-from test_convert import asf_positions, reference_positions
+from test_convert import asf_positions, plain_positions, reference_positions
 
 POSITIONS = ("Xposition", "Yposition", "Zposition")
 ROTATIONS = ("Xrotation", "Yrotation", "Zrotation")
@@ -151,6 +151,10 @@ def check_bvh_round_trip(bvh: Bvh, folder: Path, encoding: str = "utf-8") -> Non
     assert len(names) == len(points)
     for j, point in enumerate(points):
         assert np.abs(got[:, j] - expected[point]).max() < TOLERANCE_CM, point
+    for dof in (tuple(c.lower() for c in skeleton.root_order), *(bone.dof for bone in skeleton.bones)):
+        assert list(dof) == sorted(dof, key=ACCLAIM_ORDER.index)  # `tx ty tz rx ry rz`, or some of them
+    plain_names, plain = plain_positions(asf, amc)  # a reader that turns x, y, z whatever the dof order
+    assert plain_names == names and np.abs(plain - got).max() < TOLERANCE_CM
     recorded = recorded_names(asf)
     assert recorded.get("root", "root") == source.joints[0].name
     for bone, shape_name in zip(skeleton.bones, model.names[1:]):
@@ -386,8 +390,8 @@ def test_files_that_would_move_a_joint_are_never_written(tmp_path, monkeypatch):
                                        "cm"])
     assert result.exit_code == 1 and not (tmp_path / "out").exists()
     assert re.fullmatch(re.escape(f"mcz: error: {tmp_path / 'far.bvh'}: cannot be converted: mcz would read a joint "
-                                  "back ") + r"[\d.]+ cm from where it is in the files it becomes \(more than 0\.005 "
-                        r"cm\)\n", result.stderr), result.stderr
+                                  "back ") + r"[\d.]+ cm from where the clip has it \(more than 0\.005 cm\)\n",
+                        result.stderr), result.stderr
 
 
 def test_an_ordinary_clip_keeps_six_digits(shared_data, tmp_path):
