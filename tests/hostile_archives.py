@@ -107,6 +107,46 @@ def _both(*edits) -> Callable[[dict, dict], None]:
     return edit
 
 
+def _clip_frames(i: int, frames: int | Callable[[int], int]) -> Callable[[dict, dict], None]:
+    """An edit that gives clip i `frames` frames (or `frames` of its count), its class's count of
+    frames changed with it: meta stays consistent, so what is at fault is a stream."""
+
+    def edit(meta: dict, streams: dict) -> None:
+        row = meta["clips"][i]
+        count = frames(row["frames"]) if callable(frames) else frames
+        meta["classes"][row["class"]]["frames"] += count - row["frames"]
+        row["frames"] = count
+
+    return edit
+
+
+def _segmented_09_01(row_class: int = 1, class_frames: tuple[int, int] = (121, 538)) -> Callable[[dict, dict], None]:
+    """An edit of the format-8 base: clip 0 (09_01, 148 frames, class 1) becomes a take cut at
+    frame 74, its first segment in class 1 and its second in class 0 (the BVH clip's), overlap 16,
+    its streams clip/00000/000 and /001 (copies of its whole-clip stream, so a decoder refuses
+    them); the row's `class` and the classes' frames as given. Coded, with the overlap, the
+    segments span frames 0-89 and 58-147: class 0 codes 31 + 90 = 121 frames, class 1
+    448 + 90 = 538, each of two clips."""
+
+    def edit(meta: dict, streams: dict) -> None:
+        meta["settings"]["segment"] = True
+        row = meta["clips"][0]
+        row.update({"class": row_class, "segment_overlap": 16, "segments": [
+            {"first": 0, "frames": 74, "class": 1, "stream": "clip/00000/000", "error_cm": 0, "max_error_cm": 0},
+            {"first": 74, "frames": 74, "class": 0, "stream": "clip/00000/001", "error_cm": 0, "max_error_cm": 0}]})
+        streams["clip/00000/000"] = streams["clip/00000/001"] = streams.pop("clip/00000")
+        for k, frames in enumerate(class_frames):
+            meta["classes"][k].update(clips=2, frames=frames)
+
+    return edit
+
+
+def _class_of_no_clip(meta: dict, streams: dict) -> None:
+    """A second class, its basis a copy of the first's, that no clip is in."""
+    meta["classes"].append({**meta["classes"][0], "name": "empty", "clips": 0, "frames": 0})
+    streams["class/0001"] = streams["class/0000"]
+
+
 def _lossless_frames(frames: int) -> Callable[[dict, dict], None]:
     """The first clip's lossless stream, re-packed to claim `frames` frames (151 bytes or so)."""
 
@@ -235,7 +275,7 @@ def cases(watched: Path) -> list[Case]:
     # 3. Memory bombs.
     c.append(Case("lossy_1e7_frames", "lossy", _set("clips.0.frames", 10**7), "meta: clips[0].frames"))
     c.append(Case("lossy_frames_beyond_values_limit", "lossy", _set("clips.0.frames", 500_000), "meta: clips[0]"))
-    c.append(Case("lossy_stream_shorter_than_its_frames", "lossy", _set("clips.0.frames", 100_000), "clip/00000",
+    c.append(Case("lossy_stream_shorter_than_its_frames", "lossy", _clip_frames(0, 100_000), "clip/00000",
                   decoded=True))
     c.append(Case("meta_unpacks_to_2GB", "lossy", _stream("meta", lambda: _zstd_bomb(2 << 30)), "meta"))
     c.append(Case("skeletons_unpack_to_300MB", "lossless",
@@ -295,7 +335,8 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("class_stream_3_bytes", "lossy", _stream("class/0000", b"abc"), "class/0000", decoded=True))
     c.append(Case("clip_without_root_track", "lossy", _without_root_track, "clip/00000", decoded=True))
     c.append(Case("priors_3_bytes", "lossy", _stream("priors", b"abc"), "priors", decoded=True))
-    c.append(Case("class_basis_of_a_million_pose_values", "lossy", _stream("class/0000", _wide_basis), "clip/00000",
+    c.append(Case("class_basis_of_a_million_pose_values", "lossy",
+                  _both(_stream("class/0000", _wide_basis), _set("classes.0.components", 1)), "clip/00000",
                   decoded=True))
     c.append(Case("patch_stream_3_bytes", "lossy", _stream("patch/00000", b"abc"), "patch/00000", decoded=True))
     c.append(Case("patch_stream_missing", "lossy", _stream("patch/00000", None), "patch/00000: stream missing"))
@@ -338,6 +379,24 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("header_with_newline", "lossy", _set("clips.0.header.0", "# a\n1\nroot 0 0 0 0 0 0"),
                   "meta: clips[0].header[0]"))
     c.append(Case("header_with_cr", "lossless", _set("clips.0.header.0", "# a\rb"), "meta: clips[0].header[0]"))
+    # a class's counts that are not its rows' (format 7's one class: both clips, 148 + 448 frames, 18 components)
+    c.append(Case("class_components_one_fewer", "lossy", _set("classes.0.components", 17), "meta: classes[0].components",
+                  decoded=True))
+    c.append(Case("class_components_zero", "lossy", _set("classes.0.components", 0), "meta: classes[0].components",
+                  decoded=True))
+    c.append(Case("class_clips_one_more", "lossy", _set("classes.0.clips", 3), "meta: classes[0].clips"))
+    c.append(Case("class_frames_one_fewer", "lossy", _set("classes.0.frames", 595), "meta: classes[0].frames"))
+    c.append(Case("class_of_no_clip", "lossy", _class_of_no_clip, "meta: classes[1]"))
+    c.append(Case("classes_in_a_lossless_archive", "lossless",
+                  _set("classes", [{"name": "pooled", "components": 18, "clips": 2, "frames": 596}]), "meta: classes"))
+    # a take cut in two, its segments in two classes: counted with their overlap, meta holds and the
+    # copied streams are what a decoder refuses; counted without it, or the row's class not its first
+    # segment's, meta is refused
+    c.append(Case("segments_in_two_classes", "lossy_bvh", _segmented_09_01(), "clip/00000/000", decoded=True))
+    c.append(Case("segments_counted_without_their_overlap", "lossy_bvh", _segmented_09_01(class_frames=(105, 522)),
+                  "meta: classes[0].frames"))
+    c.append(Case("segmented_take_not_in_its_first_segments_class", "lossy_bvh", _segmented_09_01(row_class=0),
+                  "meta: clips[0].class"))
     c.append(Case("skeletons_stream_missing", "lossless", _stream("skeletons", None), "skeletons: stream missing"))
     c.append(Case("clip_stream_missing", "lossless", _stream("clip/00001", None), "clip/00001: stream missing"))
     c.append(Case("priors_missing", "lossy", _stream("priors", None), "priors: stream missing"))
@@ -359,6 +418,11 @@ def cases(watched: Path) -> list[Case]:
     c.append(Case("skeleton_not_asf", "lossy", _stream("skeletons", _skeletons_stream([b"hello", b"hello"])),
                   "skeletons: skeleton 0", decoded=True))
     # 6. BVH clips (format 8): the format-8 base without its AMC clips, so the BVH clip is clip 0.
+    # Its hierarchy's unit: null (not known) only where nothing decodes with it, in a lossless archive.
+    c.append(Case("bvh_units_null_in_a_lossy_archive", "lossy_bvh", _set("skeletons.0.units", None),
+                  "meta: skeletons[0].units"))
+    c.append(Case("bvh_units_null_but_inferred", "lossless_bvh", _set("skeletons.0.units", None),
+                  "meta: skeletons[0].units_inferred"))
     bones = _bvh_row("bones")
     for label, edit, section, decoded in (
         ("bvh_bones_swapped", _set("clips.0.bones", [bones[0], bones[2], bones[1], *bones[3:]]), "clip/00000", True),
@@ -397,6 +461,15 @@ def cases(watched: Path) -> list[Case]:
         ("tensor_class_without_the_setting", _both(_delete("settings.model"), _delete("settings.modes")),
          "meta: classes[0]", False),
         ("tensor_model_without_its_pattern", _delete("settings.modes"), "meta: settings.modes", False),
+        ("tensor_pattern_not_a_pattern", _set("settings.modes", "(?P<subject>[0-9]+"), "meta: settings.modes", False),
+        ("tensor_pattern_of_no_group", _set("settings.modes", "[0-9]+_01"), "meta: settings.modes", False),
+        ("tensor_pattern_of_nine_groups", _set("settings.modes", "".join(f"(?P<m{k}>x)" for k in range(8))
+                                               + "(?P<subject>[0-9]+)"), "meta: settings.modes", False),
+        ("tensor_mode_not_in_the_pattern", _set("classes.1.modes", ["actor"]), "meta: classes[1].modes", False),
+        ("tensor_mode_twice", _both(_set("classes.1.modes", ["subject", "subject"]),
+                                    _set("classes.1.levels", [["09", "64"], ["09", "64"]])),
+         "meta: classes[1].modes", False),
+        ("tensor_level_twice", _set("classes.1.levels", [["09", "09"]]), "meta: classes[1].levels[0]", False),
         ("tensor_stream_missing", _stream("tensor/0001", None), "tensor/0001", False),
         ("tensor_model_of_no_mode", _stream("tensor/0001", _model_of_no_mode), "tensor/0001", True),
         ("tensor_model_of_another_grid", _stream("tensor/0001", _other_grid_model), "tensor/0001", True),
@@ -436,8 +509,11 @@ def _bvh_row(field: str, base: str = "lossy_bvh"):
 
 
 def _bvh_only(meta: dict, streams: dict) -> None:
-    """A format-8 base with its AMC clips (0 and 1) left out: its BVH clip, clip 2, becomes clip 0."""
+    """A format-8 base with its AMC clips (0 and 1) and their class (1, lossy) left out: its BVH clip,
+    clip 2, becomes clip 0."""
     meta["clips"] = meta["clips"][2:]
+    meta["classes"] = meta["classes"][:1]
+    streams.pop("class/0001", None)
     for kind in ("clip", "patch", "extra_root"):
         for k in (0, 1):
             streams.pop(f"{kind}/{k:05d}", None)

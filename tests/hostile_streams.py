@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hostile_archives import _both, _delete, _fake_content_size, _set, _stream, _zstd_bomb
+from hostile_archives import _both, _clip_frames, _delete, _fake_content_size, _set, _stream, _zstd_bomb
 from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.codec.entropy.coefficients import decode_matrices, encode_matrices
 from mocapzip.limits import MAX_TENSOR_MODEL_NUMBERS
@@ -166,7 +166,7 @@ def _zero_model(at_most: bool, frames: int = 100_000) -> Callable[[dict, dict], 
 
     def edit(meta: dict, streams: dict) -> None:
         k, sizes, ranks, step, _ = model_parts(streams["tensor/0000"])
-        meta["clips"][LONGEST]["frames"] = frames
+        _clip_frames(LONGEST, frames)(meta, streams)
         sizes[0], ranks[1:] = frames, [1] * (k + 1)
         rest = 2 * sizes[1] + sum(sizes[2:])  # the mean, U_values and each U_k; the core and U_frames: r_0 (1 + L)
         ranks[0] = (MAX_TENSOR_MODEL_NUMBERS - rest) // (1 + frames) + (not at_most)
@@ -363,8 +363,7 @@ def _warp_cases() -> list[Case]:
         Case("warp_claims_a_terabyte", "tensor", _stream(warp, lambda: _fake_content_size(1 << 40)), warp),
         Case("warp_not_zstd", "tensor", _stream(warp, b"\x02" * 400), warp),
         Case("warp_without_its_place", "tensor", _delete("clips.0.tensor_at"), "meta: clips[0].tensor_at"),
-        Case("warp_clip_frames_one_more", "tensor", lambda meta, streams: meta["clips"][0].update(
-            frames=meta["clips"][0]["frames"] + 1), "clip/00000"),
+        Case("warp_clip_frames_one_more", "tensor", _clip_frames(0, lambda frames: frames + 1), "clip/00000"),
     ]
     return c
 

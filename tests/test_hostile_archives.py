@@ -7,14 +7,21 @@ nothing may appear anywhere in the temporary tree the case runs in.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
 import hostile_archives
+from mocapzip.archive import Archive
 from mocapzip.cli.main import main
+from mocapzip.formats.amc import read_amc, write_amc
+from mocapzip.formats.asf import read_asf
+from mocapzip.formats.bvh import read_bvh, write_bvh
+from test_bvh_pipeline import rescaled
 
 CASES = hostile_archives.cases(Path("/placeholder"))  # names only; each test builds its case in its own tree
 
@@ -67,3 +74,26 @@ def test_file_names_that_are_not_utf8_round_trip(shared_data, tmp_path):
         result = hostile_archives.run_mcz(*map(str, command))
         assert result.returncode == 0, result.stderr
     assert sorted(os.listdir(os.fsencode(out))) == [b"09.asf", name]
+
+
+def test_what_compress_writes_at_the_edges_of_the_meta_rules_passes(shared_data, tmp_path):
+    """The meta rules refuse what no compress writes, not what it does: a lossless BVH archive whose
+    unit compress could not tell (`units` null: 10_03 in inches, which reads as a child in cm) and a
+    class of one still pose (0 components: the mean alone meets the target) pass `mcz test`."""
+    inches = tmp_path / "inches" / "10_03.bvh"
+    inches.parent.mkdir()
+    write_bvh(rescaled(read_bvh(shared_data / "cmu-bvh" / "10" / "10_03.bvh"), 1 / 2.54), inches)
+    still = tmp_path / "still"
+    still.mkdir()
+    (still / "09.asf").write_bytes((shared_data / "cmu" / "09" / "09.asf").read_bytes())
+    source = read_amc(shared_data / "cmu" / "09" / "09_01.amc", read_asf(still / "09.asf"))
+    write_amc(dataclasses.replace(source, values=np.repeat(source.values[:1], 100, axis=0),
+                                  frame_numbers=np.arange(1, 101)), still / "still.amc")
+    for folder, options, field, value in ((inches.parent, ["--lossless"], ("skeletons", "units"), None),
+                                          (still, [], ("classes", "components"), 0)):
+        archive = tmp_path / f"{folder.name}.mcz"
+        for command in (("compress", folder, "-o", archive, "-q", *options), ("test", "-q", archive)):
+            result = CliRunner().invoke(main, list(map(str, command)))
+            assert result.exit_code == 0, result.output
+        with Archive(archive) as opened:
+            assert opened.meta[field[0]][0][field[1]] == value

@@ -14,7 +14,8 @@ import math
 import fastjsonschema
 import pywt
 
-from mocapzip.classes.modes import MAX_PATTERN_CHARS
+from mocapzip.classes.modes import MAX_PATTERN_CHARS, compiled_modes
+from mocapzip.classes.segment import coded_range
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
 from mocapzip.formats.bvh import MAX_MOTION_CHARS as BVH_MOTION_CHARS
 from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
@@ -221,6 +222,12 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
         bvh_fields = {"format", "encoding", "units", "units_inferred"}
         if skeleton.keys() & bvh_fields and not skeleton.keys() >= bvh_fields:
             raise fail(f"skeletons[{k}]", f"a BVH skeleton has all of {', '.join(sorted(bvh_fields))}")
+        if skeleton.get("format") == "bvh" and skeleton["units"] is None:  # the unit compress could not tell
+            if not settings["lossless"]:
+                raise fail(f"skeletons[{k}].units", "null only in a lossless archive: a lossy clip's decode needs "
+                                                    "the unit of its lengths")
+            if skeleton["units_inferred"]:
+                raise fail(f"skeletons[{k}].units_inferred", "true, but units is null: no unit was inferred")
     needed = {"meta", "skeletons"}
     if not settings["lossless"]:
         needed.update(f"class/{k:04d}" for k in range(n_classes))
@@ -228,6 +235,7 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
             needed.add("priors")
     for i, row in enumerate(meta["clips"]):
         needed.update(_check_clip(row, i, settings, meta["skeletons"], n_classes, fail))
+    _check_class_counts(meta, fail)
     needed.update(_check_tensor_classes(meta, fail))
     missing = sorted(needed - set(stream_names))
     if missing:
@@ -238,16 +246,53 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
     return _output_files(meta, fail)
 
 
+def _check_class_counts(meta: dict, fail) -> None:
+    """Each class's `clips` and `frames` are those its rows code, as compress counts them: the
+    clips with a row or a segment in it, at least one, and the frames coded (a whole clip's
+    `frames`, a segment's coded range). A lossless archive codes no class, so it lists none."""
+    classes = meta["classes"]
+    if meta["settings"]["lossless"]:
+        if classes:
+            raise fail("classes", "a lossless archive has no classes")
+        return
+    clips, frames = [set() for _ in classes], [0] * len(classes)
+    for i, row in enumerate(meta["clips"]):  # indices and segments already checked (`_check_clip`)
+        if "segments" not in row:
+            clips[row["class"]].add(i)
+            frames[row["class"]] += row["frames"]
+            continue
+        for part in row["segments"]:
+            lo, hi = coded_range(part["first"], part["frames"], row["frames"], row["segment_overlap"])
+            clips[part["class"]].add(i)
+            frames[part["class"]] += hi - lo
+    for k, row in enumerate(classes):
+        if not clips[k]:
+            raise fail(f"classes[{k}]", "no clip or segment is in this class")
+        if row["clips"] != len(clips[k]):
+            raise fail(f"classes[{k}].clips", f"{row['clips']}, but {len(clips[k])} clips have a row or segment "
+                                              "in this class")
+        if row["frames"] != frames[k]:
+            raise fail(f"classes[{k}].frames", f"{row['frames']}, but its clips and segments code {frames[k]}")
+
+
 def _check_tensor_classes(meta: dict, fail) -> list[str]:
     """`--model tensor`'s fields: the setting and its pattern come together, in a lossy archive
-    without segments; a tensor class's modes and levels agree; its clips fill its grid, one at
-    each place, and no other clip or segment is in it; return the streams they need."""
+    without segments, and the pattern compiles (`classes.modes.compiled_modes`); a tensor class's
+    modes are named groups of it, none twice, and agree with its levels, none twice in a mode;
+    its clips fill its grid, one at each place, and no other clip or segment is in it; return
+    the streams they need."""
     settings = meta["settings"]
     tensor = settings.get("model") == "tensor"
     if ("model" in settings) != ("modes" in settings):
         raise fail("settings.modes", "model and modes come together")
     if tensor and (settings["lossless"] or settings.get("segment")):
         raise fail("settings.model", "a tensor model is lossy and never segmented")
+    groups = {}
+    if "modes" in settings:  # compiled, never matched: decoding needs no path matched, and a match may backtrack
+        try:
+            groups = compiled_modes(settings["modes"]).groupindex
+        except ValueError as exc:
+            raise fail("settings.modes", str(exc)) from None
     needed, places = [], {}  # (class, tensor_at) -> clip
     for k, row in enumerate(meta["classes"]):
         if ("model" in row) != tensor or (row.get("model") == "tensor") != ("modes" in row) or \
@@ -255,8 +300,16 @@ def _check_tensor_classes(meta: dict, fail) -> list[str]:
             raise fail(f"classes[{k}]", "--model tensor names each class's model, and a tensor class its modes "
                                         "and levels; other archives none of them")
         if "modes" in row:
+            if len(set(row["modes"])) != len(row["modes"]):
+                raise fail(f"classes[{k}].modes", "a mode named twice")
+            unknown = [mode for mode in row["modes"] if mode not in groups]
+            if unknown:
+                raise fail(f"classes[{k}].modes", f"{unknown[0][:40]!r} is not a named group of settings.modes")
             if len(row["levels"]) != len(row["modes"]) or any(len(levels) < 2 for levels in row["levels"]):
                 raise fail(f"classes[{k}].levels", "two or more levels for each mode")
+            twice = next((m for m, levels in enumerate(row["levels"]) if len(set(levels)) != len(levels)), None)
+            if twice is not None:
+                raise fail(f"classes[{k}].levels[{twice}]", f"a level of mode {row['modes'][twice][:40]!r} named twice")
             needed.append(f"tensor/{k:04d}")
     for i, row in enumerate(meta["clips"]):
         segmented_or_lossless = "segments" in row or row["class"] >= len(meta["classes"])
@@ -360,6 +413,8 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
         streams.append(stream)
     if first != row["frames"]:
         raise fail(f"{where}.segments", f"segments cover {first} frames, the clip has {row['frames']}")
+    if row["class"] != row["segments"][0]["class"]:
+        raise fail(f"{where}.class", "a segmented take's class is its first segment's")
     return streams + patches
 
 

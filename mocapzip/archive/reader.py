@@ -371,9 +371,14 @@ class Archive:
     def _basis(self, k: int) -> ClassBasis:
         name = f"class/{k:04d}"
         try:
-            return self._decode_class(self._reader.read(name))
+            basis = self._decode_class(self._reader.read(name))
         except (ValueError, KeyError) as exc:
             raise ArchiveError(f"{name}: damaged ({exc})", self.path) from exc
+        stated = self.meta["classes"][k]["components"]
+        if basis.q != stated:  # meta's count is the one `info` shows: it must be the basis's
+            raise ArchiveError(f"meta: classes[{k}].components: {stated}, but {name} holds a basis of {basis.q}",
+                               self.path)
+        return basis
 
     def stream_sizes(self) -> dict[str, int]:
         return self._reader.sizes()
