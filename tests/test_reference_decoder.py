@@ -25,8 +25,9 @@ import reference_decoder
 from mocapzip.archive import Archive
 from mocapzip.cli.main import main
 from mocapzip.formats.amc import read_amc
-from mocapzip.formats.bvh import parse_bvh, read_bvh
+from mocapzip.formats.bvh import parse_bvh, read_bvh, write_bvh
 from mocapzip.formats.mcz import ArchiveReader
+from test_bvh_pipeline import rescaled
 
 GOLDEN = Path(__file__).parent / "golden"
 GOLDEN_FILES = sorted(GOLDEN.glob("lossy_v*.mcz")) + sorted(GOLDEN.glob("lossless_v*.mcz"))
@@ -214,3 +215,17 @@ def test_reference_container_reads_every_golden_container_as_mocapzip_does(path)
         assert theirs.names == ours.names() and theirs.format_version == ours.format_version
         assert theirs.tool_version == ours.tool_version
         assert all(theirs.read(name) == ours.read(name) for name in ours.names())
+
+
+def test_reference_decoder_decodes_a_lossless_bvh_archive_without_units(shared_data, tmp_path):
+    """The spec lets a lossless archive hold a BVH hierarchy whose unit compress could not tell
+    (`units` null): only lossy decoding needs them. 10_03 rescaled to inches reads as a child in cm."""
+    folder = tmp_path / "inches"
+    folder.mkdir()
+    write_bvh(rescaled(read_bvh(shared_data / "cmu-bvh" / "10" / "10_03.bvh"), 1 / 2.54), folder / "10_03.bvh")
+    archive = tmp_path / "inches.mcz"
+    result = CliRunner().invoke(main, ["compress", str(folder), "-o", str(archive), "-q", "--lossless"])
+    assert result.exit_code == 0, result.output
+    with Archive(archive) as opened:
+        assert opened.meta["skeletons"][0]["units"] is None
+    check_against_package(archive, tmp_path)

@@ -48,11 +48,12 @@ class Hierarchy:
         if sorted(k for k in entry if k != "name") != ["encoding", "format", "units", "units_inferred"]:
             raise ValueError(f"skeleton {entry.get('name')!r}: a BVH entry has format, encoding, units "
                              "and units_inferred together")
-        if entry["encoding"] not in ENCODINGS or entry["units"] not in CM_PER_UNIT \
+        # units null: a lossless archive's hierarchy that had no model; only lossy decoding needs them
+        if entry["encoding"] not in ENCODINGS or (entry["units"] is not None and entry["units"] not in CM_PER_UNIT) \
                 or not isinstance(entry["units_inferred"], bool):
             raise ValueError(f"skeleton {entry['name']!r}: bad encoding, units or units_inferred")
         self.raw, self.encoding = raw, entry["encoding"]
-        self.cm_per_unit = CM_PER_UNIT[entry["units"]]
+        self.cm_per_unit = None if entry["units"] is None else CM_PER_UNIT[entry["units"]]
         self.words = raw.decode(self.encoding).split()
         self.pos = 0
         self.joints = []
