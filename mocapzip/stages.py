@@ -20,6 +20,7 @@ schema and the contract tests (tests/test_stage_contracts.py) pick it up from he
 from __future__ import annotations
 
 import importlib
+import inspect
 from typing import ClassVar
 
 KINDS = ("representation", "transform", "quantiser", "coefficient coder", "lossless coder")
@@ -84,6 +85,9 @@ def register(cls: type) -> type:
     """Make `get_stage` know a stage class by its kind and `codec_id` (a class decorator)."""
     if cls.kind not in _REGISTRY:
         raise ValueError(f"{cls.__name__}: unknown stage kind {cls.kind!r} (kinds: {', '.join(KINDS)})")
+    if inspect.isabstract(cls):  # e.g. a representation without its own decode (`Representation`)
+        raise TypeError(f"{cls.kind} {cls.codec_id!r}: {cls.__name__} does not define "
+                        f"{', '.join(sorted(cls.__abstractmethods__))}")
     existing = _REGISTRY[cls.kind].get(cls.codec_id)
     if existing is not None and existing is not cls:
         raise ValueError(f"{cls.kind} id {cls.codec_id!r} is already registered to {existing.__name__}")

@@ -301,7 +301,8 @@ def check_representation_round_trip(representation, model: SkeletonModel, motion
     np.testing.assert_array_equal(motion.values, original, err_msg="forward changed the clip")
     assert encoded.poses.ndim == 2 and encoded.poses.shape[0] == motion.n_frames and encoded.poses.dtype == np.float64
     assert np.all(np.isfinite(encoded.poses))
-    assert encoded.root is None or encoded.root.shape == (motion.n_frames, 4)
+    root_shape = (motion.n_frames, representation.root_width) if representation.root_width else None
+    assert (None if encoded.root is None else encoded.root.shape) == root_shape, "root track not as declared"
     encoded.params["twist"] = encoder_twists(model, motion)
     values = representation.inverse(model, encoded, motion)
     assert values.shape == original.shape and values.dtype == np.float64

@@ -1,6 +1,8 @@
 """The compiled decode tail and error check (`motion.compiled`, `representations.weighted.DecodeTail`)
 against the numpy code they mirror: `Representation.inverse`, `positions.true_twists`,
-`kinematics.forward` and `metrics.joint_distances`, on real clips of three kinds of skeleton.
+`kinematics.forward` and `metrics.joint_distances`, on real clips of three kinds of skeleton, for
+every registered representation; and a representation registered here, which decodes through its
+own decoder or is refused.
 
 Poses are disturbed as a coding leaves them (white noise, a smooth drift) and far more (a drift
 of 20-50 cm), which forces other Euler branches, unwrapping and twist flips. Sampled frames
@@ -8,6 +10,8 @@ of 20-50 cm), which forces other Euler branches, unwrapping and twist flips. Sam
 """
 
 from __future__ import annotations
+
+from functools import partial
 
 import numpy as np
 import pytest
@@ -17,16 +21,20 @@ from mocapzip.inputs.discover import find_clips
 from mocapzip.motion import compiled, rotations
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.metrics import joint_distances
-from mocapzip.representations.positions import flips_from_ranges, flip_ranges, true_twists
+from mocapzip import stages
+from mocapzip.representations import Aligned, Encoded, Representation
+from mocapzip.representations.aligned import position_columns
+from mocapzip.representations.positions import MarkerDecoder, flips_from_ranges, flip_ranges, true_twists
 from mocapzip.representations.weighted import channels_from_weighted
+from mocapzip.stages import stage_ids
 
 CLIPS = {  # relative to ../shared/data: CMU; HDM05; Vicon Blade (short bones, 'f' notation, CRLF)
     "cmu": "cmu/07/07_03.amc",
     "hdm05": "hdm05/bd/HDM_bd_depositFloorR_001_120.amc",
     "blade": "other-vicon-blade/walk_200fps/walkMoCapVideo.amc",
 }
-REPRESENTATIONS = [("aligned", True), ("aligned", False), ("positions", True), ("scaled", True),
-                   ("normalised", True), ("channels", False)]
+REPRESENTATIONS = [(name, axes_from_positions) for name in stage_ids("representation", written_only=True)
+                   for axes_from_positions in (True, False)]
 VALUES_TOLERANCE = 1e-9  # degrees (or radians): seen up to 2e-11 on the large drift
 ERROR_TOLERANCE = 1e-9  # cm: seen up to 4e-13
 
@@ -91,7 +99,11 @@ def numpy_score(clip, poses, root, frames, final: bool):
 @pytest.mark.parametrize("representation,axes_from_positions", REPRESENTATIONS)
 @pytest.mark.parametrize("kind", ["noise", "smooth", "large"])
 def test_score_agrees_with_numpy(shared_data, name, representation, axes_from_positions, kind):
-    clip = load(shared_data, name, representation, axes_from_positions)
+    check_score_agrees_with_numpy(load(shared_data, name, representation, axes_from_positions), kind)
+
+
+def check_score_agrees_with_numpy(clip, kind: str) -> None:
+    """The clip's compiled scores and decode, of poses disturbed by `kind`, against numpy's."""
     poses, root = disturbed(clip, kind)
     # the searches score sampled or whole clips unrounded; the final check, whole clips as written
     for frames, final in ((slice(None, None, 8), False), (slice(None), False), (slice(None), True)):
@@ -118,7 +130,7 @@ def test_decoder_follows_the_stored_flips(shared_data, name):
     poses, root = disturbed(clip, "large", seed=3)
     _, twist = clip._decode(poses, root, slice(None))
     assert any(flags.any() for flags in twist.flips.values()), "the drift should flip some twists"
-    encoder_values, _ = clip.decode_tail.channels(poses, root, reference=clip._originals(slice(None))[1])
+    encoder_values, _ = clip.decode_tail.decoder.channels(poses, root, reference=clip._originals(slice(None))[1])
     stored = flips_from_ranges(flip_ranges(twist.flips, clip.model), clip.model, len(poses))
     params = {**clip.encoded.params, "twist": stored}
     decoded = channels_from_weighted(clip.model, clip.representation, clip.layout, poses, root, params,
@@ -127,6 +139,79 @@ def test_decoder_follows_the_stored_flips(shared_data, name):
     numpy_decoded = clip.representation.inverse(
         clip.model, type(clip.encoded)(poses / clip.weights, root, params), clip.layout)
     np.testing.assert_allclose(decoded, numpy_decoded, rtol=0, atol=VALUES_TOLERANCE)
+
+
+# --------------------------------------------------------------------------- a representation registered here
+
+OFFSET_CM = 10.0  # the toy moves every stored joint position by this much: another's decode lands far off
+
+
+def offset_to_aligned(model, poses: np.ndarray) -> np.ndarray:
+    out = np.array(poses, dtype=np.float64)
+    out[:, : position_columns(model)] -= OFFSET_CM
+    return out
+
+
+@pytest.fixture
+def registry(monkeypatch):
+    """The registry as it is; what a test registers is gone after it."""
+    monkeypatch.setattr(stages, "_REGISTRY", {kind: dict(classes) for kind, classes in stages._loaded().items()})
+
+
+def test_a_new_representation_decodes_through_its_own_decoder(shared_data, registry):
+    """A representation the tail has never heard of is decoded by the decoder it declares: the
+    compiled scores and decode agree with its own inverse, not with `aligned`'s, whose code it extends."""
+
+    @stages.register
+    class Offset(Aligned):
+        codec_id = "offset"
+
+        def forward(self, model, motion):
+            encoded = super().forward(model, motion)
+            encoded.poses[:, : position_columns(model)] += OFFSET_CM
+            return encoded
+
+        def inverse(self, model, encoded, layout):
+            poses = offset_to_aligned(model, encoded.poses)
+            return super().inverse(model, Encoded(poses, encoded.root, encoded.params), layout)
+
+        def decoder(self, tables, params, axis_weight_cm):
+            return MarkerDecoder(tables, self.column_weights(tables.model, tables.layout, axis_weight_cm), False,
+                                 self.axes_from_positions,
+                                 to_markers=partial(offset_to_aligned, tables.model))
+
+    clip = load(shared_data, "cmu", "offset", True)
+    assert isinstance(clip.representation, Offset)
+    check_score_agrees_with_numpy(clip, "noise")
+    poses, root = disturbed(clip, "noise")
+    as_aligned = channels_from_weighted(clip.model, Aligned(True), clip.layout, poses, root, clip.encoded.params,
+                                        clip.axis_weight_cm)
+    own = channels_from_weighted(clip.model, clip.representation, clip.layout, poses, root, clip.encoded.params,
+                                 clip.axis_weight_cm)
+    assert np.abs(own - as_aligned).max() > 1.0  # degrees: aligned's path would not have given it
+
+
+def test_a_representation_with_its_own_inverse_and_not_its_own_decoder_is_refused(registry):
+    """Extending a representation's inverse without its decoder would decode it down the parent's path."""
+    with pytest.raises(TypeError, match="Offset defines its own inverse but not its decoder.*as Aligned does"):
+        class Offset(Aligned):
+            codec_id = "offset"
+
+            def inverse(self, model, encoded, layout):
+                return super().inverse(model, encoded, layout)
+
+
+def test_a_representation_without_a_decode_cannot_be_registered(registry):
+    class Bare(Representation):
+        codec_id = "bare"
+
+        def forward(self, model, motion):
+            return Encoded(np.array(motion.values, dtype=np.float64))
+
+    with pytest.raises(TypeError, match="representation 'bare': Bare does not define column_weights, decoder, "
+                                        "inverse, joint_position_columns"):
+        stages.register(Bare)
+    assert "bare" not in stage_ids("representation")
 
 
 @pytest.mark.parametrize("name", sorted(CLIPS))

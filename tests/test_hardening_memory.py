@@ -97,17 +97,17 @@ def test_a_clip_read_again_warns_once(tmp_path, shared_data):
 
 
 def test_a_long_clip_decodes_the_same_a_range_of_joints_at_a_time(shared_data, monkeypatch):
-    """The decode kernel keeps local rotations for the joints of one call only (`weighted.
+    """The decode kernel keeps local rotations for the joints of one call only (`positions.
     LOCAL_ROTATIONS_BYTES`): one joint a call gives the channels and flips of all joints at once."""
     import numpy as np
 
     from mocapzip.archive import Archive
-    from mocapzip.representations import weighted
+    from mocapzip.representations import positions
 
     golden = Path(__file__).parent / "golden"
     with Archive(sorted(golden.glob("lossy_v*.mcz"), key=lambda p: int(p.stem.split("_v")[1]))[-1]) as archive:
         whole = [archive.decode(k).values for k in range(len(archive.clips))]
-    monkeypatch.setattr(weighted, "LOCAL_ROTATIONS_BYTES", 1)
+    monkeypatch.setattr(positions, "LOCAL_ROTATIONS_BYTES", 1)
     with Archive(sorted(golden.glob("lossy_v*.mcz"), key=lambda p: int(p.stem.split("_v")[1]))[-1]) as archive:
         by_joint = [archive.decode(k).values for k in range(len(archive.clips))]
     assert all(np.array_equal(a, b) for a, b in zip(whole, by_joint))

@@ -10,6 +10,7 @@ checks and their fixture, not an encode round trip.
 from __future__ import annotations
 
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -17,12 +18,13 @@ import pytest
 from common import (STAGE_FIXTURES, TRANSFORM_DTYPES, assert_bits_equal, check_coefficient_coder_round_trip,
                     check_config_round_trip, check_lossless_round_trip, check_matrices_equal,
                     check_quantiser_round_trip, check_repr, check_representation_round_trip,
-                    check_transform_round_trip, check_unknown_id_refused, fixture_matrices, fixture_name,
-                    kind_slug, load_clip, load_fixture, lossless_stream_version)
+                    check_transform_round_trip, check_unknown_id_refused, encoder_twists, fixture_matrices,
+                    fixture_name, kind_slug, load_clip, load_fixture, lossless_stream_version)
 from mocapzip.codec import lossless
 from mocapzip.codec.entropy.coefficients import Priors, matrix_stream_version
 from mocapzip.representations.base import Encoded
 from mocapzip.representations.positions import flips_from_ranges
+from mocapzip.representations.weighted import DecodeTail
 from mocapzip.stages import KINDS, get_stage, stage_classes, stage_ids
 
 # Configs besides every stage's defaults, for parameters whose values take other code paths.
@@ -146,6 +148,28 @@ def test_lossless_coder_round_trip_on_real_values(kind, codec_id, config, shared
 @pytest.mark.parametrize(("kind", "codec_id", "config"), stage_cases("representation", encodable_only=True))
 def test_representation_round_trip_on_a_real_clip(kind, codec_id, config, shared_data):
     check_representation_round_trip(build(kind, codec_id, config), *load_clip(shared_data))
+
+
+@pytest.mark.parametrize(("kind", "codec_id", "config"), stage_cases("representation", encodable_only=True))
+def test_representation_decode_tail_gives_its_inverse(kind, codec_id, config, shared_data):
+    """The decode tail (`mcz decompress`, the encoder's error check) runs the representation's own
+    decoder on its weighted poses, and that gives what its inverse gives: a representation is
+    never decoded down another's path."""
+    representation = build(kind, codec_id, config)
+    model, motion = load_clip(shared_data)
+    encoded = representation.forward(model, motion)
+    encoded.params["twist"] = encoder_twists(model, motion)
+    expected = representation.inverse(model, encoded, motion)  # records the twist flips the decoder follows
+    axis_weight_cm = 12.0
+    weights = representation.column_weights(model, motion, axis_weight_cm)
+    assert weights.shape == encoded.poses.shape[1:] and np.all(weights > 0)
+    assert representation.joint_position_columns(model).stop <= len(weights)
+    tail = DecodeTail(model, representation, motion, encoded.params, axis_weight_cm)
+    decoded = tail.decode(encoded.poses * weights, encoded.root, encoded.params["twist"])
+    np.testing.assert_allclose(decoded, expected, rtol=0, atol=1e-9)
+    # clips go to worker processes with their decode tail
+    copy = pickle.loads(pickle.dumps(tail))
+    np.testing.assert_array_equal(copy.decode(encoded.poses * weights, encoded.root, encoded.params["twist"]), decoded)
 
 
 # --------------------------------------------------------------------------- frozen fixtures

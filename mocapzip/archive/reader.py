@@ -48,7 +48,6 @@ from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.motion.timewarp import path_of_moves
 from mocapzip.parallel import imap, one_blas_thread, thread_imap
 from mocapzip.progress import progress
-from mocapzip.representations.base import ROOT_TRACK_WIDTH
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
 from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout
@@ -292,8 +291,9 @@ class Archive:
         """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
         basis = self._basis(class_index)
         check_matrix_shape(n_frames, basis.mean.size)  # the decoded poses: bounded before they are made
-        with_root = self.stages["representation"].has_root_track
-        shapes = [(n_frames, basis.q), (n_frames, ROOT_TRACK_WIDTH)][: 2 if with_root else 1]
+        root_width = self.stages["representation"].root_width
+        with_root = root_width > 0
+        shapes = [(n_frames, basis.q), (n_frames, root_width)][: 2 if with_root else 1]
         coded = self._decode_clip(self._reader.read(stream), shapes)
         if (coded.root_ints is not None) != with_root:
             raise ValueError(f"{'no' if with_root else 'a'} root track matrix, where the representation "

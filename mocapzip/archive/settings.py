@@ -32,7 +32,7 @@ class Settings:
     split: list[float] | None = None  # forced R, P, T shares of error_cm
     dead_zone: float = 0.2
     basis_precision: float = 0.04  # basis rounding error per direction, as a share of error_cm (docs/fixed_costs.md)
-    axis_weight_cm: float = 12.0  # weight of bone axis vectors against positions (weighted.pose_weights; solved_bones.py)
+    axis_weight_cm: float = 12.0  # weight of bone axis vectors against positions (Representation.column_weights; solved_bones.py)
     fps: float = DEFAULT_FPS  # clips' frame rate where their files state none (ASF/AMC have no field for it)
     fps_from_files: bool = True  # a rate the clip's files state wins over `fps` (False: --fps given, for all)
     lossless: bool = False

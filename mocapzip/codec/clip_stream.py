@@ -4,7 +4,8 @@ the way back from them to weighted poses and root track.
 Layout (format 2 on; docs/format.md): `f32 pose_step`, `f32 root_step`, then one matrices
 stream of the coefficient coder named in the settings ("context" or "primed",
 `mocapzip.codec.entropy.coefficients`): the frames x Q pose coefficients and, for the
-representations with a root track, its frames x 4 coefficients. Format 1's layout is read by
+representations with a root track, its frames x `Representation.root_width` coefficients
+(x, y, z, yaw: `representations.base.ROOT_TRACK_WIDTH`). Format 1's layout is read by
 `mocapzip.archive.legacy`.
 
 The root track is scaled into the pose's units (cm) before its transform, yaw by a typical
@@ -33,7 +34,7 @@ class CodedClip:
     pose_step: float
     pose_ints: np.ndarray  # (frames, Q) transform coefficients
     root_step: float
-    root_ints: np.ndarray | None  # (frames, 4), or None for representations without a root track
+    root_ints: np.ndarray | None  # (frames, ROOT_TRACK_WIDTH), or None for representations without a root track
 
     @property
     def matrices(self) -> list[np.ndarray]:

@@ -27,7 +27,7 @@ from mocapzip.motion import compiled
 from mocapzip.progress import progress
 from mocapzip.representations import get_representation
 from mocapzip.representations.base import Encoded
-from mocapzip.representations.weighted import DecodeTail, pose_weights
+from mocapzip.representations.weighted import DecodeTail
 from mocapzip.representations.positions import TwistChoice, flip_ranges, twisted_bones
 from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, unmodelled
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
@@ -71,11 +71,11 @@ class LoadedClip:
 
     @cached_property
     def weights(self) -> np.ndarray:
-        return pose_weights(self.model, self.representation_name, self.encoded.poses.shape[1], self.axis_weight_cm)
+        return self.representation.column_weights(self.model, self.layout, self.axis_weight_cm)
 
     @cached_property
     def poses(self) -> np.ndarray:
-        """The representation's poses, weighted (see `pose_weights`): the space the codec works in."""
+        """The representation's poses, weighted (`Representation.column_weights`): the space the codec works in."""
         return self.encoded.poses * self.weights
 
     @property
@@ -141,21 +141,21 @@ class LoadedClip:
         original, reference = self._originals(frames)
         if len(poses) != len(original):
             raise ValueError(f"{len(poses)} poses for {len(original)} frames")
-        values, flips = self.decode_tail.channels(poses, root, reference=reference)
+        values, flips = self.decode_tail.decoder.channels(poses, root, reference=reference)
         if not self.axes_from_positions:
             return values, None
-        return values, TwistChoice({int(j): flips[r] for r, j in enumerate(self.decode_tail.twisted)})
+        return values, TwistChoice({int(j): flips[r] for r, j in enumerate(self.decode_tail.decoder.twisted)})
 
     def _originals(self, frames) -> tuple[np.ndarray, np.ndarray | None]:
-        """The original joint positions of `frames` and the twist reference (`DecodeTail.twist_reference`),
+        """The original joint positions of `frames` and the twist reference (`MarkerDecoder.twist_reference`),
         kept for the last slice asked for: the encoder scores the same sample over and over."""
         key = frames.indices(self.motion.n_frames) if isinstance(frames, slice) else None
         if key is not None and self._scored_frames[0] == key:
             return self._scored_frames[1]
         original = np.ascontiguousarray(self.positions[frames])
         reference = None
-        if self.axes_from_positions and self.representation_name != "channels":
-            reference = self.decode_tail.twist_reference(self.motion.values[frames])
+        if self.axes_from_positions and len(self.decode_tail.decoder.twisted):
+            reference = self.decode_tail.decoder.twist_reference(self.motion.values[frames])
         if key is not None:
             self._scored_frames = (key, (original, reference))
         return original, reference

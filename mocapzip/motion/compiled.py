@@ -7,11 +7,11 @@ and the joint distances are also written here as loops over frames and joints. E
 kernel mirrors one numpy function in its order of operations (scores agree to about
 1e-13 cm); `tests/test_compiled_decode.py` holds them to the numpy code.
 
-The kernels take plain arrays; `representations.weighted.DecodeTail` prepares them for
-a skeleton, layout and representation. All helpers live in this one file because numba's
-cache does not notice edits to helpers in other files. Compiled code is cached next to
-this file (or in numba's user cache): only the first run on a machine compiles, about
-15 s.
+The kernels take plain arrays: `representations.weighted.ChannelTables` prepares a skeleton's
+channel layout for them, and `representations.positions.MarkerDecoder` a marker
+representation's columns. All helpers live in this one file because numba's cache does not
+notice edits to helpers in other files. Compiled code is cached next to this file (or in
+numba's user cache): only the first run on a machine compiles, about 15 s.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def _axis_rot(k, angle, out):
 @njit(cache=True, nogil=True)
 def _load(stack, i, out):
     """out = stack[i] (3x3), copied element by element: `stack[i]` would make a view, and numba
-    counts each view's references with atomic operations, which cost decode_channels a fifth of
+    counts each view's references with atomic operations, which cost markers_to_channels a fifth of
     its time when it made one per joint and frame."""
     for r in range(3):
         for k in range(3):
@@ -393,20 +393,21 @@ def _orthonormal(x0, x1, x2, y0, y1, y2, out):
 
 
 @njit(cache=True, nogil=True)
-def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_root,
-                    parents, faux, pos_col, y_col, x_col, root_ax_col, root_proxy,
-                    solved, sol_u, sol_nrot, sol_a0, sol_a1, sol_radius, sol_phase, sol_ref,
-                    ref, use_ref, flips_in, axis,
-                    col_start, nchan, chan_kind, chan_axis, nrot, rot_axes, rot_k,
-                    cm_per_unit, from_rad, width, values, j_lo, j_hi):
-    """Weighted poses (F, M) [+ root track (F, 4)] -> AMC channel values (F, width), and the
-    twist flips of the 2-dof solved bones (NR, F): `channels_from_weighted` for the marker
-    representations (positions / aligned / scaled; normalised after its numpy pre-pass).
+def markers_to_channels(poses, weights, root, with_root,
+                        parents, faux, pos_col, y_col, x_col, root_ax_col, root_proxy,
+                        solved, sol_u, sol_nrot, sol_a0, sol_a1, sol_radius, sol_phase, sol_ref,
+                        ref, use_ref, flips_in, axis,
+                        col_start, nchan, chan_kind, chan_axis, nrot, rot_axes, rot_k,
+                        cm_per_unit, from_rad, width, values, j_lo, j_hi):
+    """Weighted marker poses (F, M) [+ root track (F, ROOT_TRACK_WIDTH) unless `with_root`] -> AMC
+    channel values (F, width), and the twist flips of the 2-dof solved bones (NR, F): the decode
+    of `positions` (`with_root`: the poses hold the root position) and of `aligned` (a root track
+    of x, y, z and heading), `positions.MarkerDecoder`.
 
     Written into `values` (F, width): every channel but the rotations of joints outside
     [j_lo, j_hi), whose local rotations over all frames are kept for their Euler fits (72 bytes
     a joint and frame); a long clip is decoded in several calls, a range of joints each, and
-    each call writes the same numbers for what they share (`DecodeTail.channels`)."""
+    each call writes the same numbers for what they share (`MarkerDecoder.channels`)."""
     F = poses.shape[0]
     NR = flips_in.shape[0]
     J = parents.shape[0]
@@ -441,10 +442,7 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
                 pos[j, 2] = 0.0
             else:
                 for k in range(3):
-                    v = poses[f, c0 + k] / weights[c0 + k]
-                    if c0 + k < n_pos_cols:
-                        v = v / pos_div
-                    pos[j, k] = v
+                    pos[j, k] = poses[f, c0 + k] / weights[c0 + k]
         # stored frames: R = B^T orthonormal_frame(x, y)
         for j in range(1, J):
             if y_col[j] < 0:
@@ -565,7 +563,7 @@ def decode_channels(poses, weights, pos_div, n_pos_cols, root, has_track, with_r
             _mm(t2, r_p, t1)
             _store(t1, R, j)
         # world rotations: aligned family turns by the heading
-        if has_track:
+        if not with_root:
             _axis_rot(1, root[f, 3], turn)
             for j in range(J):
                 _load(R, j, t1)

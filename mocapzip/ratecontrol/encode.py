@@ -37,7 +37,6 @@ from mocapzip.ratecontrol.max_error import Achieved, Bounds, TargetError, achiev
 from mocapzip.ratecontrol.planted_feet import planted
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
-from mocapzip.representations.weighted import joint_position_columns
 
 ROOT_STEP_RATIO = 0.2
 
@@ -165,7 +164,7 @@ def _components_for_share(index: int) -> int:
     clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
     frames = slice(None, None, SEARCH_STRIDE)
     poses, root = clip.poses[frames], None if clip.root is None else clip.root[frames]
-    proxy = TruncationProxy(poses, pca.mean, pca.components, joint_position_columns(clip.model, clip.representation_name))
+    proxy = TruncationProxy(poses, pca.mean, pca.components, clip.representation.joint_position_columns(clip.model))
 
     def error(q: int) -> float:
         return clip.error(proxy.truncated(q), root, frames)[0]
@@ -351,7 +350,7 @@ class _ClipSearch:
     @cached_property
     def proxy(self) -> CodingProxy:
         clip = self.clip
-        columns = joint_position_columns(clip.model, clip.representation_name)
+        columns = clip.representation.joint_position_columns(clip.model)
         character = None if clip.root is None else (clip.own_poses[:, columns].reshape(self.n, -1, 3), clip.root[:, 3])
         return CodingProxy(self.pose_coef, self.root_coef, self.basis.components, columns,
                            clip.poses - self.basis.reconstruct(self.projected), self.transform, self.dz, character,

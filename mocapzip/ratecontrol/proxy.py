@@ -108,7 +108,7 @@ class CodingProxy:
 
     `pose_coef`: the temporal coefficients (`transform`) of the clip's basis coefficients (frames x
     Q); `root_coef`: those of its scaled root track (frames x 4) or None; `basis`: the class basis
-    (columns x Q); `columns`: its position columns (`weighted.joint_position_columns`); `residual`: the
+    (columns x Q); `columns`: its position columns (`Representation.joint_position_columns`); `residual`: the
     pose error the basis leaves before any quantisation (frames x columns); `character`: for
     representations with a root track, the clip's joint positions in the character frame (frames
     x joints x 3, cm) and its heading (frames, radians). `frames`: the frames measured.

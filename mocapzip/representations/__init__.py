@@ -16,9 +16,11 @@ whose rotation follows from the joint positions (`positions.solved_bones`; CMU:
 183 -> 132 and 180 -> 129 values), as the codec does since format 4.
 
 One module each: `channels.py`, `positions.py`, `aligned.py`, `scaled.py`, `normalised.py`, on
-`base.py` (the `Representation` stage and the `Encoded` it returns); `universal.py` is the
-universal body `scaled` and `normalised` map clips to, and `weighted.py` the codec's weighted pose
-space and the one decode tail back to AMC channels.
+`base.py` (the `Representation` stage, the `Encoded` it returns and the `PoseDecoder` it decodes
+with); `scaled` and `normalised` are `aligned.RescaledAligned`s, `universal.py` the universal
+body they map clips to, and `weighted.py` the codec's weighted pose space and the one decode tail
+back to AMC channels, which runs each representation's own decoder (`positions.MarkerDecoder`,
+compiled, for all but `channels`).
 """
 
 from __future__ import annotations

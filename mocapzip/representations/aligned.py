@@ -22,14 +22,19 @@ trip is exact by construction.
 
 from __future__ import annotations
 
+from abc import abstractmethod
+from functools import partial
+
 import numpy as np
 
 from mocapzip.motion.kinematics import Pose, forward, inverse
 from mocapzip.motion.rotations import angle_about, axis_rotation
 from mocapzip.motion.skeleton import SkeletonModel
-from mocapzip.representations.base import Encoded, Representation
+from mocapzip.representations.base import ROOT_TRACK_WIDTH, Encoded, PoseDecoder, Representation
+from mocapzip.representations.positions import (MarkerDecoder, decode_markers, encode_markers, marker_weights,
+                                                marker_width)
+from mocapzip.representations.weighted import ChannelTables
 from mocapzip.stages import register
-from mocapzip.representations.positions import decode_markers, encode_markers
 
 MIN_HEADING_CONFIDENCE = 0.25
 
@@ -59,7 +64,7 @@ def position_columns(model: SkeletonModel) -> int:
 @register
 class Aligned(Representation):
     codec_id = "aligned"
-    has_root_track = True
+    root_width = ROOT_TRACK_WIDTH
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         pose = forward(model, motion.values, motion)
@@ -72,3 +77,44 @@ class Aligned(Representation):
                                twist=encoded.params.get("twist"))
         turn = axis_rotation("y", encoded.root[:, 3])
         return inverse(model, local.rotations @ turn[:, None], encoded.root[:, :3], layout)
+
+    def joint_position_columns(self, model: SkeletonModel) -> slice:
+        return slice(0, position_columns(model))
+
+    def column_weights(self, model: SkeletonModel, layout, axis_weight_cm: float) -> np.ndarray:
+        return marker_weights(marker_width(model, False, self.axes_from_positions),
+                              self.joint_position_columns(model), axis_weight_cm)
+
+    def decoder(self, tables: ChannelTables, params: dict, axis_weight_cm: float) -> MarkerDecoder:
+        return MarkerDecoder(tables, self.column_weights(tables.model, tables.layout, axis_weight_cm), False,
+                             self.axes_from_positions)
+
+
+class RescaledAligned(Representation):
+    """`aligned` with its joint positions rescaled per clip (`scaled`: by one factor,
+    `normalised`: bone by bone). A subclass gives `forward` and `to_aligned`, the rescaling
+    undone; its inverse and its decoder are `aligned`'s after `to_aligned`, so the two agree."""
+
+    root_width = ROOT_TRACK_WIDTH
+
+    def __init__(self, axes_from_positions: bool = False):
+        super().__init__(axes_from_positions)
+        self.aligned = Aligned(axes_from_positions)
+
+    @abstractmethod
+    def to_aligned(self, model: SkeletonModel, poses: np.ndarray, params: dict) -> np.ndarray:
+        """This representation's (unweighted) `poses` as `aligned` poses, a copy."""
+
+    def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
+        poses = self.to_aligned(model, encoded.poses, encoded.params)
+        return self.aligned.inverse(model, Encoded(poses, encoded.root, encoded.params), layout)
+
+    def joint_position_columns(self, model: SkeletonModel) -> slice:
+        return self.aligned.joint_position_columns(model)
+
+    def column_weights(self, model: SkeletonModel, layout, axis_weight_cm: float) -> np.ndarray:
+        return self.aligned.column_weights(model, layout, axis_weight_cm)
+
+    def decoder(self, tables: ChannelTables, params: dict, axis_weight_cm: float) -> PoseDecoder:
+        return MarkerDecoder(tables, self.column_weights(tables.model, tables.layout, axis_weight_cm), False,
+                             self.axes_from_positions, to_markers=partial(self.to_aligned, tables.model, params=params))

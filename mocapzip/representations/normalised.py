@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from mocapzip.motion.skeleton import SkeletonModel
-from mocapzip.representations.aligned import Aligned, position_columns
-from mocapzip.representations.base import Encoded, Representation
-from mocapzip.stages import register
+from mocapzip.representations.aligned import RescaledAligned, position_columns
+from mocapzip.representations.base import Encoded
 from mocapzip.representations.universal import universal_lengths
+from mocapzip.stages import register
 
 
 def rescale_bones(model: SkeletonModel, poses: np.ndarray, factors: np.ndarray) -> np.ndarray:
@@ -31,13 +31,8 @@ def rescale_bones(model: SkeletonModel, poses: np.ndarray, factors: np.ndarray) 
 
 
 @register
-class Normalised(Representation):
+class Normalised(RescaledAligned):
     codec_id = "normalised"
-    has_root_track = True
-
-    def __init__(self, axes_from_positions: bool = False):
-        super().__init__(axes_from_positions)
-        self.aligned = Aligned(axes_from_positions)
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         encoded = self.aligned.forward(model, motion)
@@ -47,6 +42,5 @@ class Normalised(Representation):
         encoded.params["norm"] = norm
         return encoded
 
-    def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
-        poses = rescale_bones(model, encoded.poses, 1.0 / encoded.params["norm"])
-        return self.aligned.inverse(model, Encoded(poses, encoded.root, encoded.params), layout)
+    def to_aligned(self, model: SkeletonModel, poses: np.ndarray, params: dict) -> np.ndarray:
+        return rescale_bones(model, poses, 1.0 / params["norm"])

@@ -27,6 +27,9 @@ positions cannot tell apart: `TwistChoice` says which.
 
 Column order: positions (root first unless the caller drops it), y axes of
 bones 1..J-1 (solved bones left out), x axes of short bones, root axes.
+
+`MarkerDecoder` decodes every marker representation (this one, `aligned`, `scaled`,
+`normalised`) as `decode_markers` and `kinematics.inverse` do, compiled (`motion.compiled`).
 """
 
 from __future__ import annotations
@@ -35,15 +38,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mocapzip.motion import compiled
 from mocapzip.motion.kinematics import Pose, forward, inverse
 from mocapzip.motion.rotations import AXIS_INDEX, axis_rotation, euler_matrix, orthonormal_frame, wrap
 from mocapzip.motion.skeleton import SkeletonModel
-from mocapzip.representations.base import Encoded, Representation
+from mocapzip.representations.base import ROOT_TRACK_WIDTH, Encoded, PoseDecoder, Representation
+from mocapzip.representations.weighted import ChannelTables
 from mocapzip.stages import register
 
 # A dof axis closer to the bone than this cosine (60 degrees) mostly twists the bone
 # about itself, which its direction cannot show: such a bone keeps its stored axis.
 TWIST_COSINE = 0.5
+# The decode kernel keeps each joint's local rotations over all frames for its Euler fits, 72 bytes
+# a joint and frame: a clip at the limits (135,300 frames of 31 joints) took 300 MB at once, and
+# with the rest passed 1 GB of address space. Beyond this many bytes it runs again per range of
+# joints (`MarkerDecoder.channels`): the same numbers, the frame loop once more per range (clips
+# over ~28,000 frames).
+LOCAL_ROTATIONS_BYTES = 64 << 20
 
 
 def solved_bones(model: SkeletonModel) -> np.ndarray:
@@ -239,6 +250,124 @@ def decode_markers(model: SkeletonModel, poses: np.ndarray, with_root: bool, axe
     return Pose(rotations, positions)
 
 
+def marker_weights(width: int, joint_positions: slice, axis_weight_cm: float) -> np.ndarray:
+    """Column weights of a marker pose: joint positions (cm) count 1, the bone axis vectors after
+    them (unit vectors) `axis_weight_cm`, the distance at which an axis error becomes a position
+    error (`Representation.column_weights`)."""
+    weights = np.ones(width)
+    weights[joint_positions.stop:] = axis_weight_cm
+    return weights
+
+
+class MarkerDecoder(PoseDecoder):
+    """The compiled decode of marker poses (`compiled.markers_to_channels`): `decode_markers`,
+    then `kinematics.inverse` (the aligned family turned by their root track first), for one
+    skeleton and channel layout. `with_root`: the poses hold the root position (`positions`),
+    otherwise a root track of x, y, z and heading comes beside them (`aligned`). `to_markers`, if
+    given, takes a representation's unweighted poses to aligned markers first, in numpy
+    (`aligned.RescaledAligned.to_aligned`: `scaled`, `normalised`); like the decoder, it must
+    pickle (no lambda), as clips go to worker processes with their decode tail."""
+
+    def __init__(self, tables: ChannelTables, weights: np.ndarray, with_root: bool, axes_from_positions: bool,
+                 to_markers=None):
+        self.tables, self.weights, self.with_root, self.to_markers = tables, weights, with_root, to_markers
+        model, joints = tables.model, tables.model.n_joints
+        first = 0 if with_root else 1
+        stored = stored_axes(model, axes_from_positions)
+        short = np.flatnonzero(model.short)
+        cuts = np.cumsum([3 * (joints - first), 3 * int(stored.sum()), 3 * len(short)])
+        self.marker_width = int(cuts[2]) + (6 if model.root_proxy is None else 0)  # `marker_width`
+        if len(weights) != self.marker_width:
+            raise ValueError(f"{len(weights)} column weights for poses of {self.marker_width} columns")
+        self.position_column = np.full(joints, -1, np.int64)
+        self.position_column[first:] = 3 * np.arange(joints - first)
+        self.y_column = np.full(joints, -1, np.int64)
+        self.y_column[1:][stored] = cuts[0] + 3 * np.arange(int(stored.sum()))
+        self.x_column = np.full(joints, -1, np.int64)
+        self.x_column[short] = cuts[1] + 3 * np.arange(len(short))
+        self.root_axes_column = int(cuts[2]) if model.root_proxy is None else -1
+        self.root_proxy = -1 if model.root_proxy is None else int(model.root_proxy)
+        self.faux = np.ascontiguousarray(model.faux)
+        self._solved_tables(model, stored)
+
+    def _solved_tables(self, model: SkeletonModel, stored: np.ndarray) -> None:
+        """The constants of the solved bones' closed forms (`solve_local`), and where the 2-dof
+        ones' angles sit in the layout (`twist_reference`)."""
+        joints = model.n_joints
+        self.solved = (np.flatnonzero(~stored) + 1).astype(np.int64)
+        self.bone_direction = np.zeros((joints, 3))  # u = V C^T, normalised
+        self.solved_dofs = np.zeros(joints, np.int64)
+        self.solved_first_axis = np.zeros(joints, np.int64)
+        self.solved_second_axis = np.zeros(joints, np.int64)
+        self.solved_radius = np.ones(joints)
+        self.solved_phase = np.zeros(joints)
+        self.twist_index = np.full(joints, -1, np.int64)  # row of a 2-dof solved bone in flips
+        for j in self.solved:
+            u = model.offsets[j] @ model.axis[j].T
+            u = u / np.linalg.norm(u)
+            self.bone_direction[j] = u
+            axes = model.rotation_axes(j)
+            self.solved_dofs[j] = len(axes)
+            if axes:
+                a = AXIS_INDEX[axes[0]]
+                b, c = (a + 1) % 3, (a + 2) % 3
+                self.solved_first_axis[j] = a
+                self.solved_phase[j] = np.arctan2(u[c], u[b])
+                if len(axes) == 2:
+                    self.solved_second_axis[j] = AXIS_INDEX[axes[1]]
+                    self.solved_radius[j] = np.hypot(u[b], u[c])
+        # the 2-dof solved bones in `true_twists`' order, and their angle columns
+        self.twisted = np.array(twisted_bones(model), np.int64)
+        self.twist_index[self.twisted] = np.arange(len(self.twisted))
+        columns = self.tables.layout.columns()
+        self.twist_columns = np.full((len(self.twisted), 2), -1, np.int64)
+        self.twist_axes = np.zeros((len(self.twisted), 2), np.int64)
+        for r, j in enumerate(self.twisted):
+            self.twist_axes[r] = [AXIS_INDEX[a] for a in model.rotation_axes(j)]
+            if model.names[j] in columns:
+                rotations = [k for k, (kind, _) in enumerate(model.channels[j]) if kind == "r"]
+                self.twist_columns[r] = columns[model.names[j]].start + np.array(rotations[:2])
+
+    def twist_reference(self, original_values: np.ndarray) -> np.ndarray:
+        """(F, 2-dof solved bones, 3, 3): their true local rotations (`true_twists`)."""
+        return compiled.twist_reference(np.ascontiguousarray(original_values, dtype=np.float64), self.twisted,
+                                        self.twist_columns, self.twist_axes[:, 0].copy(),
+                                        self.twist_axes[:, 1].copy(), self.tables.to_rad)
+
+    def channels(self, weighted_poses: np.ndarray, root: np.ndarray | None, reference: np.ndarray | None = None,
+                 flips: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        poses = np.ascontiguousarray(weighted_poses, dtype=np.float64)
+        n_frames = len(poses)
+        if poses.ndim != 2 or poses.shape[1] != self.marker_width:
+            raise ValueError(f"poses have shape {poses.shape}, this skeleton needs (frames, {self.marker_width})")
+        if not self.with_root and (root is None or np.shape(root) != (n_frames, ROOT_TRACK_WIDTH)):
+            raise ValueError(f"root track has shape {np.shape(root)}, expected ({n_frames}, {ROOT_TRACK_WIDTH})")
+        weights = self.weights
+        if self.to_markers is not None:  # unweighted here, so the kernel reads them as they are
+            poses = np.ascontiguousarray(self.to_markers(poses / weights))
+            weights = np.ones_like(weights)
+        use_reference = reference is not None
+        if reference is None:
+            reference = np.zeros((1, max(len(self.twisted), 1), 3, 3))
+        if flips is None:
+            flips = np.zeros((len(self.twisted), n_frames), np.bool_)
+        root = np.zeros((1, ROOT_TRACK_WIDTH)) if root is None else np.ascontiguousarray(root, dtype=np.float64)
+        t = self.tables
+        values = np.zeros((n_frames, t.width))
+        joints = len(t.parents)
+        per_call = max(1, LOCAL_ROTATIONS_BYTES // (72 * max(n_frames, 1)))  # joints whose rotations fit
+        for first in range(0, joints, per_call):
+            values, out_flips = compiled.markers_to_channels(
+                poses, weights, root, self.with_root, t.parents, self.faux, self.position_column, self.y_column,
+                self.x_column, self.root_axes_column, self.root_proxy, self.solved, self.bone_direction,
+                self.solved_dofs, self.solved_first_axis, self.solved_second_axis, self.solved_radius,
+                self.solved_phase, self.twist_index, reference, use_reference, np.ascontiguousarray(flips), t.axis,
+                t.first_column, t.n_channels, t.channel_kind, t.channel_axis, t.n_rotations, t.rotation_axes,
+                t.rotation_channel, float(t.model.cm_per_unit), 1.0 / t.to_rad, t.width, values, first,
+                min(joints, first + per_call))
+        return values, out_flips
+
+
 @register
 class Positions(Representation):
     codec_id = "positions"
@@ -251,3 +380,14 @@ class Positions(Representation):
         pose = decode_markers(model, encoded.poses, with_root=True, axes_from_positions=self.axes_from_positions,
                               twist=encoded.params.get("twist"))
         return inverse(model, pose.rotations, pose.positions[:, 0], layout)
+
+    def joint_position_columns(self, model: SkeletonModel) -> slice:
+        return slice(0, 3 * model.n_joints)
+
+    def column_weights(self, model: SkeletonModel, layout, axis_weight_cm: float) -> np.ndarray:
+        return marker_weights(marker_width(model, True, self.axes_from_positions),
+                              self.joint_position_columns(model), axis_weight_cm)
+
+    def decoder(self, tables: ChannelTables, params: dict, axis_weight_cm: float) -> MarkerDecoder:
+        return MarkerDecoder(tables, self.column_weights(tables.model, tables.layout, axis_weight_cm), True,
+                             self.axes_from_positions)

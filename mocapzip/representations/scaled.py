@@ -9,20 +9,15 @@ from __future__ import annotations
 import numpy as np
 
 from mocapzip.motion.skeleton import SkeletonModel
-from mocapzip.representations.aligned import Aligned, position_columns
-from mocapzip.representations.base import Encoded, Representation
-from mocapzip.stages import register
+from mocapzip.representations.aligned import RescaledAligned, position_columns
+from mocapzip.representations.base import Encoded
 from mocapzip.representations.universal import UNIVERSAL_HEIGHT_CM, skeleton_height
+from mocapzip.stages import register
 
 
 @register
-class Scaled(Representation):
+class Scaled(RescaledAligned):
     codec_id = "scaled"
-    has_root_track = True
-
-    def __init__(self, axes_from_positions: bool = False):
-        super().__init__(axes_from_positions)
-        self.aligned = Aligned(axes_from_positions)
 
     def forward(self, model: SkeletonModel, motion) -> Encoded:
         encoded = self.aligned.forward(model, motion)
@@ -31,7 +26,7 @@ class Scaled(Representation):
         encoded.params["scale"] = scale
         return encoded
 
-    def inverse(self, model: SkeletonModel, encoded: Encoded, layout) -> np.ndarray:
-        poses = np.array(encoded.poses, dtype=np.float64)
-        poses[:, : position_columns(model)] /= encoded.params["scale"]
-        return self.aligned.inverse(model, Encoded(poses, encoded.root, encoded.params), layout)
+    def to_aligned(self, model: SkeletonModel, poses: np.ndarray, params: dict) -> np.ndarray:
+        out = np.array(poses, dtype=np.float64)
+        out[:, : position_columns(model)] /= params["scale"]
+        return out
