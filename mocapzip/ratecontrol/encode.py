@@ -146,7 +146,7 @@ def _coded_with(basis: ClassBasis, precision: float, basis_of, clips, target: fl
         basis = basis_of(basis.q, precision)
     raise TargetError(f"no coding met {target:g} cm (this clip reached {worst:.4f} cm): the target is "
                       "finer than the precision of the clip's numbers allows; use a larger -e, or --lossless",
-                      clips[index].source.amc)
+                      clips[index].source.motion)
 
 
 def _estimated(bases: list[ClassBasis], jobs: int) -> tuple[list[int], list[list]]:
