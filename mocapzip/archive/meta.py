@@ -146,7 +146,7 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
     {
         "tool": _STRING,
         "settings": _SETTINGS,
-        "skeletons": {"type": "array", "items": _record({"name": _STRING}, {  # format 8 on: a BVH hierarchy
+        "skeletons": {"type": "array", "items": _record({"name": _STRING}, {  # format 8 on: BVH hierarchies
             "format": _STRING,  # an input format's name ("bvh"; `inputs.registry`); absent: an ASF
             "encoding": {"enum": ["utf-8", "latin-1"]},
             "units": {"enum": [*UNITS_CM, None]}, "units_inferred": {"type": "boolean"}})},
