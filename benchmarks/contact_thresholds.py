@@ -33,10 +33,10 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     heights, speeds, planted_frames, frames = [], [], 0, 0
     for source in find_clips(args.inputs):
-        model = SkeletonModel.from_asf(read_asf(source.asf))
+        model = SkeletonModel.from_asf(read_asf(source.skeleton))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a last frame cut short is dropped, as compress does
-            motion = read_amc(source.amc)
+            motion = read_amc(source.motion)
         positions = forward(model, motion.values, motion).positions
         feet = foot_joints(model)
         height = positions[:, feet, 1] - np.percentile(positions[:, feet, 1], 1, axis=0)

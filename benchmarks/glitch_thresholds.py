@@ -34,11 +34,11 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     moves, limit_runs = [], {m: [0, set()] for m in MARGINS}
     for source in find_clips(args.inputs):
-        skeleton = read_asf(source.asf)
+        skeleton = read_asf(source.skeleton)
         model = SkeletonModel.from_asf(skeleton)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a last frame cut short is dropped, as compress does
-            motion = read_amc(source.amc, skeleton)
+            motion = read_amc(source.motion, skeleton)
         positions = forward(model, motion.values, motion).positions
         moves.append(np.linalg.norm(np.diff(positions, axis=0), axis=2).ravel())
         for margin in MARGINS:

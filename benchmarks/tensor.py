@@ -68,7 +68,7 @@ class WarpedClass:
         if sorted(index) != sorted(grid):
             raise SystemExit(f"{paths[0].parent}: the clips do not fill the grid of {self.modes}")
         reader = ClipReader("aligned", fps=DEFAULT_FPS)  # each clip at the rate its files state (Bandai: 30 Hz)
-        by_name = {source.amc.name: reader.read(source) for source in find_clips(paths)}
+        by_name = {source.motion.name: reader.read(source) for source in find_clips(paths)}
         self.clips = [by_name[path.name] for path in paths]
         features = [self._features(clip) for clip in self.clips]
         longest = int(np.argmax([len(f) for f in features]))  # the reference: no clip loses frames to the warp

@@ -1,7 +1,7 @@
 """File formats: Acclaim ASF (skeletons, `asf`), AMC (motions, `amc`), BVH (`bvh`) and the .mcz
-container (`mcz`); the text handling and number grammar they share (`text`), the per-value loops of
-AMC and BVH compiled with numba (`amc_compiled`), and the one error type every reader raises
-(`errors`)."""
+container (`mcz`); the text handling and number grammar they share (`text`), numbers read and
+written in compiled code (`numbers_compiled`, numba), each format's per-value loops beside it
+(`amc_compiled`, `bvh_compiled`), and the one error type every reader raises (`errors`)."""
 
 from mocapzip.formats.errors import MocapFormatError
 

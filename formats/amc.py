@@ -57,8 +57,8 @@ from mocapzip.formats.text import (
     stated_frame_rate,
     whole_number,
 )
-from mocapzip.formats.amc_compiled import (
-    LAYOUT_OK,
+from mocapzip.formats.amc_compiled import LAYOUT_OK, format_frames, scan_frames
+from mocapzip.formats.numbers_compiled import (
     STAT_ALL_DOT,
     STAT_ANY_EXP,
     STAT_COUNT,
@@ -66,8 +66,6 @@ from mocapzip.formats.amc_compiled import (
     STAT_MAX_SIG,
     STAT_MIN_EXP_DIGITS,
     STAT_SAME_DECIMALS,
-    format_frames,
-    scan_frames,
     scan_tokens,
     with_numbers,
 )
@@ -328,7 +326,7 @@ def _separator(text: str | None) -> str:
 
 def _number_style(stats) -> dict:
     """notation, digits and exponent width that write every value counted in `stats` (from
-    `amc_compiled`) back unchanged."""
+    `numbers_compiled`) back unchanged."""
     if stats[STAT_COUNT] == 0:
         return {}
     max_sig = int(stats[STAT_MAX_SIG])

@@ -26,8 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapzip.formats.amc_compiled import format_rows, scan_lines, with_numbers
+from mocapzip.formats.bvh_compiled import format_rows, scan_lines
 from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.numbers_compiled import with_numbers
 from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, check_text, detect_encoding, number,
                                    open_regular_file, read_regular_file, split_lines, whole_number)
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP
@@ -72,7 +73,7 @@ class BvhStyle:
 
     def format(self, values: np.ndarray) -> str:
         """The frame lines of `values` (frames, channels), in this style: "g" and "f" numbers in
-        compiled code (`amc_compiled.format_rows`, the numbers it leaves and "repr" in Python)."""
+        compiled code (`bvh_compiled.format_rows`, the numbers it leaves and "repr" in Python)."""
         width = values.shape[1] if values.ndim == 2 else 0
         ending = self.trailing + self.line_end
         if width == 0:
@@ -442,7 +443,7 @@ def _frame_values(frames: bytes, frames_text: str, n_frames: int, width: int, pa
     (MocapFormatError naming the first line that does not), and line f's text (without its end)
     as `lines[f]` or `lines(f)`.
 
-    The usual file is read in one compiled pass over its bytes (`amc_compiled.scan_lines`); any
+    The usual file is read in one compiled pass over its bytes (`bvh_compiled.scan_lines`); any
     other, word by word, which names the word or line at fault."""
     body = np.frombuffer(frames, dtype=np.uint8)
     ok, values, starts = scan_lines(body, n_frames, width, MAX_ABS_VALUE)

@@ -9,8 +9,8 @@ some of them. Values must be finite and at most `MAX_ABS_VALUE` in magnitude: mo
 capture angles and positions are far below 1e9, and a value like 1e308 is a corrupted file,
 not a pose (it would also overflow every later computation).
 
-AMC and BVH files convert their many numbers in compiled code (`amc_compiled`), with the same grammar
-and the same results as `number` here.
+AMC and BVH files convert their many numbers in compiled code (`numbers_compiled`), with the same
+grammar and the same results as `number` here.
 """
 
 from __future__ import annotations

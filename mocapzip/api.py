@@ -83,8 +83,8 @@ class Clip:
         self.frames: int = row["frames"]
         # the rate the clip's files stated, else compress's --fps (default 120): ASF/AMC have no field for it
         self.fps: float = row.get("fps", archive._archive.settings.fps)
-        # "amc" or "bvh": the kind of file the clip came from, which `decompress` writes
-        self.format: str = "bvh" if "bvh" in row else "amc"
+        # "amc" or "bvh": the kind of file the clip came from, which `decompress` writes (`inputs.registry`)
+        self.format: str = archive._archive.clip_format(index).name
         self._units = archive._archive.meta["skeletons"][row["skeleton"]].get("units")  # BVH lengths
         lossless = archive._archive.settings.lossless
         self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"])
@@ -111,7 +111,7 @@ class Clip:
         """The clip as the AMC file `decompress` writes, read back: bones, counts, values (read-only);
         a BVH clip's is `bvh`."""
         self._only("amc", "motion")
-        motion = parse_amc(self._archive.file_bytes("amc", self.index), self.path, self.skeleton)
+        motion = parse_amc(self._archive.file_bytes("motion", self.index), self.path, self.skeleton)
         motion.values.flags.writeable = False  # positions() are computed from them
         return motion
 
@@ -120,7 +120,7 @@ class Clip:
         """A BVH clip as the file `decompress` writes, read back (values read-only)."""
         self._only("bvh", "bvh")
         try:
-            return parse_bvh(self._archive.file_bytes("amc", self.index), self.path)
+            return parse_bvh(self._archive.file_bytes("motion", self.index), self.path)
         except MocapFormatError as exc:  # the text the archive makes: a damaged archive, not a bad input
             raise ArchiveError(f"clip {self.path}: damaged ({exc})", self._archive.path) from exc
 

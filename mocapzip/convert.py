@@ -58,7 +58,8 @@ from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, parse_bvh,
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import NUMBER, check_folders, write_file_atomically
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
-from mocapzip.inputs.discover import find_clips, is_bvh, no_clips, record_skip
+from mocapzip.inputs.discover import find_clips, no_clips, record_skip
+from mocapzip.inputs.registry import AMC, BVH
 from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_positions, point_names
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.rotations import euler_angles, euler_matrix
@@ -224,10 +225,11 @@ def convert(inputs, output, asf=None, units: str | None = None, force: bool = Fa
     for source in sources:
         for target in _targets(source):
             if target in plans:
-                raise MocapFormatError(f"two clips would be written to {target} (also {plans[target].amc})", source.amc)
+                raise MocapFormatError(f"two clips would be written to {target} (also {plans[target].motion})",
+                                       source.motion)
             plans[target] = source
     check_folders((out / target).parent for target in plans)
-    inputs_read = {os.path.realpath(p) for s in sources for p in (s.amc, s.asf) if p is not None}
+    inputs_read = {os.path.realpath(p) for s in sources for p in (s.motion, s.skeleton) if p is not None}
     for target in plans:
         path = out / target
         if os.path.realpath(path) in inputs_read:
@@ -250,42 +252,48 @@ def convert(inputs, output, asf=None, units: str | None = None, force: bool = Fa
     return {"clips": len(converted), "written": written, "skipped": skipped}
 
 
+_BECOMES = {AMC: [".bvh"], BVH: [".amc", ".asf"]}  # the suffixes of the files a clip of each format becomes
+
+
 def _targets(source) -> list[str]:
     """The files a clip becomes, relative to the output folder: x.amc -> x.bvh; x.bvh -> x.amc, x.asf."""
+    if source.format not in _BECOMES:
+        raise MocapFormatError(f"mcz convert turns AMC clips into BVH and BVH into ASF/AMC, not "
+                               f"{source.format.name.upper()} clips", source.motion)
     stem = source.relpath[: -len(".amc")]  # .amc and .bvh alike; "take.1.amc" stays "take.1"
-    return [stem + ".amc", stem + ".asf"] if is_bvh(source.amc.name) else [stem + ".bvh"]
+    return [stem + suffix for suffix in _BECOMES[source.format]]
 
 
 def _converted(source, reader: ClipReader, units: str | None) -> list[bytes]:
     """The bytes of the files a clip becomes (`_targets`), each checked to read back as written and
     with the source clip's joint positions."""
     targets = _targets(source)
-    if is_bvh(source.amc.name):
-        bvh = read_bvh(source.amc)
+    if source.format is BVH:
+        bvh = read_bvh(source.motion)
         skeleton, motion = bvh_to_amc(bvh, units)
         name_bytes = motion.n_frames * sum(len(name.encode("utf-8")) + 1 for name in motion.bones)
         if name_bytes > MAX_AMC_BYTES:  # refused before the text is made: names are repeated in every frame
             raise MocapFormatError(f"cannot be converted: its joint names alone would take {name_bytes:,} bytes of "
-                                   f"its AMC file, which may have {MAX_AMC_BYTES:,}", source.amc)
+                                   f"its AMC file, which may have {MAX_AMC_BYTES:,}", source.motion)
         asf = format_asf(skeleton).encode("utf-8")
         positions = _asf_joints_in_bvh(bvh, units)
         for digits in AMC_DIGITS:
             written = replace(motion, style=AmcStyle(digits=digits))
             files = [format_amc(written).encode("utf-8"), asf]
-            moved = _asf_amc_read_back(files, targets, skeleton, written, positions, source.amc)
+            moved = _asf_amc_read_back(files, targets, skeleton, written, positions, source.motion)
             if moved <= READ_BACK_CM:
                 return files
-        raise _moved(moved, source.amc)
+        raise _moved(moved, source.motion)
     read = reader.motion(source)
     bvh = amc_to_bvh(read.skeleton, read.motion, clip_frame_rate(read.stated_fps, DEFAULT_FPS))
     positions = _asf_positions(read.skeleton, read.motion)
     for number in BVH_NUMBERS:
         written = replace(bvh, style=replace(bvh.style, number=number))
         files = [format_bvh(written).encode(written.encoding)]
-        moved = _bvh_read_back(files[0], targets[0], written, positions, source.amc)
+        moved = _bvh_read_back(files[0], targets[0], written, positions, source.motion)
         if moved <= READ_BACK_CM:
             return files
-    raise _moved(moved, source.amc)
+    raise _moved(moved, source.motion)
 
 
 def _asf_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:

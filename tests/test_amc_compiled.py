@@ -1,6 +1,7 @@
-"""The compiled AMC loops (formats/amc_compiled.py) against plain Python: float() and the
-number grammar for reading, the `%` operator for writing; on every real AMC file, on damaged
-files and on random values. A few real files in the fast tier, all of them under `slow`."""
+"""The compiled AMC loops (formats/amc_compiled.py, on formats/numbers_compiled.py) against plain
+Python: float() and the number grammar for reading, the `%` operator for writing; on every real
+AMC file, on damaged files and on random values. A few real files in the fast tier, all of them
+under `slow`."""
 
 from __future__ import annotations
 
@@ -18,12 +19,8 @@ from hypothesis import strategies as st
 
 import hostile_inputs
 from mocapzip.formats.amc import AmcStyle, Motion, _number_style, _parse_exact, _parse_fast, format_amc, parse_amc
-from mocapzip.formats.amc_compiled import (
-    STAT_ANY_EXP,
-    STAT_MIN_EXP_DIGITS,
-    format_frames,
-    scan_tokens,
-)
+from mocapzip.formats.amc_compiled import format_frames
+from mocapzip.formats.numbers_compiled import STAT_ANY_EXP, STAT_MIN_EXP_DIGITS, scan_tokens
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import NUMBER
 
@@ -57,7 +54,7 @@ def python_words(data: bytes) -> list[bytes]:
 
 
 def python_stats(words: list[bytes]) -> np.ndarray:
-    """What amc_compiled counts of valid number words, from their text."""
+    """What numbers_compiled counts of valid number words, from their text."""
     sig, decimals, exp_digits, dots = [], [], [], []
     for word in words:
         mantissa, _, exponent = word.lstrip(b"+-").lower().partition(b"e")

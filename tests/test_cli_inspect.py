@@ -61,7 +61,7 @@ def test_inspect_reports_bad_amc_with_file_and_line(shared_data, tmp_path):
 def test_find_clips_pairs_skeletons(shared_data, tmp_path):
     clips = find_clips([shared_data / "hdm05"])
     assert len(clips) == 34
-    assert all(c.asf.parent == c.amc.parent for c in clips)
+    assert all(c.skeleton.parent == c.motion.parent for c in clips)
     assert any(c.relpath.endswith(".AMC") for c in clips)  # upper-case extension found
     # No skeleton in the folder: a clear error naming the clip.
     shutil.copy(shared_data / "cmu" / "07" / "07_01.amc", tmp_path / "a.amc")

@@ -129,7 +129,7 @@ def test_apply_adds_each_frames_ints_times_its_steps():
 @pytest.fixture(scope="module")
 def glitch_clip(shared_data):
     """01_06: its rfemur ry flips from about 9 to about 177 degrees and back for a few frames (a glitch in the source)."""
-    source = next(s for s in find_clips([shared_data / "cmu" / "01"]) if s.amc.name == "01_06.amc")
+    source = next(s for s in find_clips([shared_data / "cmu" / "01"]) if s.motion.name == "01_06.amc")
     return ClipReader("aligned", 12.0, axes_from_positions=True).read(source)
 
 

@@ -193,7 +193,7 @@ def test_golden_archives_keep_decoding(shared_data, version):
         assert sum("bvh" in row for row in archive.clips) == (version >= 8)
         for i, row in enumerate(archive.clips):
             if "bvh" in row:
-                assert archive.file_bytes("amc", i) == (bandai / row["path"]).read_bytes()
+                assert archive.file_bytes("motion", i) == (bandai / row["path"]).read_bytes()
                 continue
             assert np.array_equal(archive.decode(i).values, read_amc(source(row)[0]).values)
     with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:
@@ -205,7 +205,7 @@ def test_golden_archives_keep_decoding(shared_data, version):
             if "bvh" in row:  # its joints and End Sites, against the source's
                 assert "extra_root" in row["bvh"]  # the extra root moves: its channels have a stream
                 original = bvh_joint_positions(read_bvh(bandai / row["path"]))
-                decoded = bvh_joint_positions(parse_bvh(archive.file_bytes("amc", i)))
+                decoded = bvh_joint_positions(parse_bvh(archive.file_bytes("motion", i)))
                 distances = np.linalg.norm(original - decoded, axis=-1)
                 assert distances.mean() <= row["error_cm"] + 1e-3 <= 1.0 + 1e-3
                 assert distances.max() <= 3.0 + 1e-3

@@ -41,7 +41,7 @@ ERROR_TOLERANCE = 1e-9  # cm: seen up to 4e-13
 
 def load(shared_data, name: str, representation: str, axes_from_positions: bool, frames: int = 600):
     path = shared_data / CLIPS[name]
-    source = next(s for s in find_clips([path.parent]) if s.amc == path)
+    source = next(s for s in find_clips([path.parent]) if s.motion == path)
     clip = ClipReader(representation, axes_from_positions=axes_from_positions).read(source)
     n = min(frames, clip.motion.n_frames)
     clip.motion.values = clip.motion.values[:n]

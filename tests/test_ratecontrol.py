@@ -36,8 +36,8 @@ def test_each_clip_lands_just_under_its_target_with_few_true_scores(subject, tar
     transform = get_stage("transform", settings.transform)
     for clip in clips[:4]:
         coding = code_clip(clip, basis, transform, target, settings.dead_zone)
-        assert coding.error[0] <= target, clip.source.amc
-        assert coding.error[0] >= 0.95 * target, (clip.source.amc, coding.error)  # no bytes given away
+        assert coding.error[0] <= target, clip.source.motion
+        assert coding.error[0] >= 0.95 * target, (clip.source.motion, coding.error)  # no bytes given away
         assert coding.checks <= 3 * MAX_CALIBRATIONS  # a handful of true scores, not one per step tried
         assert coding.proxy_scale > 0
         # the error returned is the end-to-end one of the coding returned, every frame as written

@@ -19,10 +19,10 @@ from mocapzip.classes.segment import coded_range
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
 from mocapzip.formats.bvh import MAX_MOTION_CHARS as BVH_MOTION_CHARS
 from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
-from mocapzip.formats.bvh import motion_lines_problem
 from mocapzip.formats.text import MAX_FRAME_RATE
-from mocapzip.formats.mcz import ArchiveError, parse_json
+from mocapzip.formats.mcz import ArchiveError
 from mocapzip.defaults import UNITS_CM
+from mocapzip.inputs.registry import input_formats, stored_format
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_NATURAL_MODES, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import stage_classes, stage_ids
 
@@ -147,8 +147,9 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
     {
         "tool": _STRING,
         "settings": _SETTINGS,
-        "skeletons": {"type": "array", "items": _record({"name": _STRING}, {  # format 8 on: a BVH hierarchy
-            "format": {"enum": ["bvh"]}, "encoding": {"enum": ["utf-8", "latin-1"]},
+        "skeletons": {"type": "array", "items": _record({"name": _STRING}, {  # format 8 on: BVH hierarchies
+            "format": _STRING,  # an input format's name ("bvh"; `inputs.registry`); absent: an ASF
+            "encoding": {"enum": ["utf-8", "latin-1"]},
             "units": {"enum": [*UNITS_CM, None]}, "units_inferred": {"type": "boolean"}})},
         "classes": {"type": "array", "items": _record({"name": _STRING, "components": _COUNT, "clips": _COUNT,
                                                        "frames": _COUNT}, {  # --model tensor (format 11 on)
@@ -219,9 +220,7 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
     n_classes = len(meta["classes"])
     for k, skeleton in enumerate(meta["skeletons"]):
         _check_file_name(skeleton["name"], f"skeletons[{k}].name", fail)
-        bvh_fields = {"format", "encoding", "units", "units_inferred"}
-        if skeleton.keys() & bvh_fields and not skeleton.keys() >= bvh_fields:
-            raise fail(f"skeletons[{k}]", f"a BVH skeleton has all of {', '.join(sorted(bvh_fields))}")
+        _check_skeleton_entry(skeleton, k, fail)
         if skeleton.get("format") == "bvh" and skeleton["units"] is None:  # the unit compress could not tell
             if not settings["lossless"]:
                 raise fail(f"skeletons[{k}].units", "null only in a lossless archive: a lossy clip's decode needs "
@@ -344,21 +343,15 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
                           f"({MAX_VALUES_PER_FRAME} values per frame, {MAX_VALUES_PER_CLIP} per clip)")
     if row["first_frame"] + row["frames"] - 1 > MAX_FRAME_NUMBER:
         raise fail(f"{where}.first_frame", f"frame numbers would pass {MAX_FRAME_NUMBER}")
-    # An AMC line of ASCII digits is a frame number (`formats.amc`); a BVH clip is written as BVH.
-    if "bvh" not in row and any(b.isascii() and b.isdigit() for b in row["bones"]):
-        raise fail(f"{where}.bones", "a bone name of digits only would read back as a frame number")
     if row["skeleton"] >= n_skeletons:
         raise fail(f"{where}.skeleton", f"index {row['skeleton']} but the archive has {n_skeletons} skeletons")
-    if ("bvh" in row) != (skeletons[row["skeleton"]].get("format") == "bvh"):
-        raise fail(f"{where}.bvh", "a BVH clip has this field and a BVH skeleton, other clips neither")
-    if "bvh" in row:
-        problem = motion_lines_problem(row["bvh"]["motion"], row["frames"])
-        if problem:
-            raise fail(f"{where}.bvh.motion", problem)
-        if row["header"] or row["first_frame"] != 1 or row["angle_unit"] != "deg":
-            raise fail(where, "a BVH clip's header is empty, its first_frame 1 and its angle_unit deg")
-        if not row["path"].lower().endswith(".bvh"):
-            raise fail(f"{where}.path", "a BVH clip's path ends in .bvh")
+    clip_format = stored_format(skeletons[row["skeleton"]])  # a clip's format is its skeleton's
+    for other in input_formats():
+        if other.row_field is not None and (other.row_field in row) != (other is clip_format):
+            kind = other.name.upper()
+            raise fail(f"{where}.{other.row_field}", f"a {kind} clip has this field and a {kind} skeleton, other "
+                                                     "clips neither")
+    kept = clip_format.check_row(row, i, fail)  # the format's rules, and streams it keeps beside the clip's
     for n, line in enumerate(row["header"]):
         stripped = line.strip(" \t\f\v")
         if "\r" in line or "\n" in line or "\0" in line or (stripped and stripped[0] not in "#:"):
@@ -379,7 +372,7 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
             raise fail(f"{where}.twist_flips", f"ranges of {bone[:40]!r} are not increasing pairs within the clip")
     if settings["lossless"]:
         if ("segments" in row or "twist_flips" in row or "patched_frames" in row or "planted_stances" in row
-                or "extra_root" in row.get("bvh", {})):
+                or kept):
             raise fail(where, "a lossless clip has no segments, twist flips, patches, stances or extra root stream")
         return [f"clip/{i:05d}"]
     bounded = "max_error_cm" in settings or "contact_error_cm" in settings
@@ -391,7 +384,7 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
     if row.get("patched_frames", 0) > row["frames"]:
         raise fail(f"{where}.patched_frames", f"{row['patched_frames']} patched frames in a clip of {row['frames']}")
     patches = [f"patch/{i:05d}"] if "patched_frames" in row else []
-    patches += [f"extra_root/{i:05d}"] if "extra_root" in row.get("bvh", {}) else []
+    patches += kept
     if row.get("planted_stances", 0) > row["frames"]:
         raise fail(f"{where}.planted_stances", f"{row['planted_stances']} stances in a clip of {row['frames']} frames")
     patches += [f"plant/{i:05d}"] if "planted_stances" in row else []
@@ -418,6 +411,19 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
     return streams + patches
 
 
+def _check_skeleton_entry(entry: dict, k: int, fail) -> None:
+    """A skeleton's entry names an input format mcz reads (or none: an ASF) and has that format's
+    fields (`InputFormat.entry_fields`), no others."""
+    input_format = stored_format(entry)
+    if input_format is None:
+        known = ", ".join(f.name for f in input_formats() if not f.asf_skeletons)
+        raise fail(f"skeletons[{k}].format", f"{entry['format'][:40]!r} is not a format an entry names ({known}; "
+                                             "an ASF's names none)")
+    fields = {"name", *(() if input_format.asf_skeletons else ("format",)), *input_format.entry_fields}
+    if entry.keys() != fields:
+        raise fail(f"skeletons[{k}]", f"{input_format.skeleton_kind} entries have exactly {', '.join(sorted(fields))}")
+
+
 def _check_relative_path(path: str, field: str, fail) -> None:
     """A stored path names a file below the output folder: relative, and no part empty, '.' or '..'."""
     if not path or len(path.encode("utf-8", "surrogatepass")) > MAX_PATH_BYTES:
@@ -439,7 +445,7 @@ def _check_file_name(name: str, field: str, fail, whole: str | None = None) -> N
 
 
 def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
-    """Every file a full decompress writes: relative path -> ("amc", clip) or ("asf", skeleton).
+    """Every file a full decompress writes: relative path -> ("motion", clip) or ("skeleton", skeleton).
 
     Two things may not share a path, and no file may be the folder of another, so no file
     written replaces or hides another one of the same archive.
@@ -449,17 +455,17 @@ def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
     def claim(path: str, what: tuple[str, int], field: str) -> None:
         kind, index = files.setdefault(path, what)
         if (kind, index) != what:
-            raise fail(field, f"{path[:80]!r} is written twice (already {'clip' if kind == 'amc' else 'skeleton'} "
+            raise fail(field, f"{path[:80]!r} is written twice (already {'clip' if kind == 'motion' else 'skeleton'} "
                               f"{index}'s file)")
 
     for i, row in enumerate(meta["clips"]):
-        claim(row["path"], ("amc", i), f"clips[{i}].path")
+        claim(row["path"], ("motion", i), f"clips[{i}].path")
     for i, row in enumerate(meta["clips"]):
-        if "bvh" in row:
-            continue  # a BVH file holds its skeleton
+        entry = meta["skeletons"][row["skeleton"]]
+        if stored_format(entry).skeleton_suffix is None:
+            continue  # the clip's file holds its skeleton (BVH)
         folder = row["path"].rpartition("/")[0]
-        claim(f"{folder}/{meta['skeletons'][row['skeleton']]['name']}".lstrip("/"), ("asf", row["skeleton"]),
-              f"clips[{i}].skeleton")
+        claim(f"{folder}/{entry['name']}".lstrip("/"), ("skeleton", row["skeleton"]), f"clips[{i}].skeleton")
     folders = set()
     for path in files:
         while "/" in path:

@@ -23,7 +23,7 @@ import numpy as np
 
 from mocapzip.archive import legacy
 from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
-from mocapzip.archive.meta import contents_of, parse_json
+from mocapzip.archive.meta import contents_of
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.settings import Settings
 from mocapzip.archive.skeletons import decode_skeletons
@@ -36,12 +36,11 @@ from mocapzip.codec.entropy.zstd import decode_bytes, unpack_blobs
 from mocapzip.codec.foot_lock import Stances, hold
 from mocapzip.codec.lossless import decode_channels
 from mocapzip.codec.patches import FramePatches, channel_steps
-from mocapzip.formats.amc import AmcStyle, Motion, format_amc
-from mocapzip.formats.asf import parse_asf
-from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
+from mocapzip.formats.amc import AmcStyle, Motion
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.mcz import ArchiveError, ArchiveReader
+from mocapzip.formats.mcz import ArchiveError, ArchiveReader, parse_json
 from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, in_value_range, write_file_atomically
+from mocapzip.inputs.registry import InputFormat, stored_format
 from mocapzip.limits import MAX_ABS_POSE, MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
@@ -50,7 +49,6 @@ from mocapzip.parallel import imap, one_blas_thread, thread_imap
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
-from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout
 
 
 def _built_once(build: Callable) -> Callable:
@@ -144,7 +142,7 @@ class Archive:
         """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
         count = len(self.meta["skeletons"])
         if self.format_version >= 10:  # templates and numbers (archive/skeletons.py)
-            is_asf = [record.get("format") != "bvh" for record in self.meta["skeletons"]]
+            is_asf = [stored_format(entry).asf_skeletons for entry in self.meta["skeletons"]]
             try:
                 texts = [blob.decode("latin-1") for blob in
                          decode_skeletons(self._stream("skeletons"), is_asf, MAX_DECODED_STREAM_BYTES)]
@@ -232,59 +230,39 @@ class Archive:
         return Motion(row["bones"], row["counts"], values, frames, row["header"], row["path"], AmcStyle(**row["style"]))
 
     def file_bytes(self, kind: str, index: int) -> bytes:
-        """The bytes `decompress` writes for an entry of `files`: ("amc", clip) or ("asf", skeleton).
+        """The bytes `decompress` writes for an entry of `files`: ("motion", clip), as the clip's
+        format writes it (`registry.InputFormat.write`), or ("skeleton", skeleton).
 
-        An AMC that mcz could not read back (values it refuses) is an error here, not a file.
+        A clip that mcz could not read back (values it refuses) is an error here, not a file.
         """
-        if kind == "asf":
+        if kind == "skeleton":
             return self.skeleton_text(index).encode("latin-1")
-        row = self.clips[index]
-        if "bvh" in row:
-            return self._bvh_file(index)
-        motion = self.decode(index)
-        self._check_range(index, motion.values)
-        return format_amc(motion).encode(motion.style.encoding)
+        return self.clip_format(index).write(self, index)
 
-    def _bvh_file(self, index: int) -> bytes:
-        """A BVH clip's file: its hierarchy, MOTION lines and frames (docs/format.md, "Decoding a BVH clip")."""
-        row, k = self.clips[index], self.clips[index]["skeleton"]
-        if self.settings.lossless:  # the values as the file had them: no model needed
-            layout = file_layout(self.bvh_joints(k))
-        else:
-            skeleton = self.bvh_skeleton(k)
-            layout = (list(skeleton.bones), list(skeleton.counts))
-        if (row["bones"], row["counts"]) != layout:
-            raise ArchiveError(f"clip/{index:05d} ({row['path']}): damaged (its bones and counts are not its "
-                               "hierarchy's)", self.path)
-        values = self.decode(index).values
-        if not self.settings.lossless:
-            values = skeleton.file_values(values, self._extra_root(index, skeleton))
-        self._check_range(index, values)
-        text = self.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
-        encoding = self.meta["skeletons"][k]["encoding"]
-        return text + (row["bvh"]["motion"] + BvhStyle(**row["bvh"]["style"]).format(values)).encode(encoding)
+    def clip_format(self, index: int) -> InputFormat:
+        """The input format of clip `index`: its skeleton's (`registry.stored_format`, checked by `meta.validate`)."""
+        return stored_format(self.meta["skeletons"][self.clips[index]["skeleton"]])
 
-    def _check_range(self, index: int, values: np.ndarray) -> None:
+    def damaged(self, index: int, problem: str) -> ArchiveError:
+        """The error for clip `index`, whose streams decode to something its row and skeleton cannot be."""
+        return ArchiveError(f"clip/{index:05d} ({self.clips[index]['path']}): damaged ({problem})", self.path)
+
+    def check_range(self, index: int, values: np.ndarray) -> None:
         """ArchiveError for a value no reader would take back: NaN, or beyond +-MAX_ABS_VALUE."""
         if not in_value_range(values):
-            raise ArchiveError(f"clip/{index:05d} ({self.clips[index]['path']}): damaged (decoded values beyond "
-                               f"+-{MAX_ABS_VALUE:g}, which no reader accepts)", self.path)
+            raise self.damaged(index, f"decoded values beyond +-{MAX_ABS_VALUE:g}, which no reader accepts")
 
-    def _extra_root(self, index: int, skeleton: BvhSkeleton) -> np.ndarray | None:
-        """A lossy BVH clip's extra root's channels (`BvhSkeleton.above`; None: all 0), checked against its skeleton."""
+    def extra_root(self, index: int, width: int) -> np.ndarray:
+        """A lossy clip's `width` channels kept exactly beside its coded ones (stream extra_root/NNNNN: a
+        BVH clip's extra root), checked to be one row per frame."""
         row, name = self.clips[index], f"extra_root/{index:05d}"
-        if "extra_root" not in row["bvh"]:
-            return None  # none, or all 0
-        if not len(skeleton.above):
-            raise ArchiveError(f"clip/{index:05d} ({row['path']}): damaged (an extra root stream, but its "
-                               "hierarchy has no extra root)", self.path)
         try:
             values = decode_channels(self._reader.read(name))
         except (ValueError, KeyError, IndexError, EOFError) as exc:
             raise ArchiveError(f"{name} ({row['path']}): damaged ({exc})", self.path) from exc
-        if values.shape != (row["frames"], len(skeleton.above)):
+        if values.shape != (row["frames"], width):
             raise ArchiveError(f"{name} ({row['path']}): damaged ({values.shape[1]} channels of {values.shape[0]} "
-                               f"frames, the clip needs {len(skeleton.above)} of {row['frames']})", self.path)
+                               f"frames, the clip needs {width} of {row['frames']})", self.path)
         return values
 
     def _reconstruct(self, stream: str, class_index: int, n_frames: int):
@@ -323,40 +301,18 @@ class Archive:
     def _coded_clip(self, blob: bytes, shapes) -> CodedClip:
         return CodedClip.from_payload(blob, self.settings.coefficient_coder, shapes, self.priors)
 
-    @_built_once
     def _model(self, k: int) -> SkeletonModel:
-        if self.meta["skeletons"][k].get("format") == "bvh":
-            return self.bvh_skeleton(k).model
-        try:
-            asf = parse_asf(self.skeleton_text(k).encode("latin-1"), self.meta["skeletons"][k]["name"])
-            return SkeletonModel.from_asf(asf)
-        except (MocapFormatError, ValueError) as exc:
-            if isinstance(exc, ArchiveError):
-                raise
-            raise ArchiveError(f"skeletons: skeleton {k} is not a valid ASF ({exc})", self.path) from exc
+        return self.stored_skeleton(k)[1]
 
     @_built_once
-    def bvh_joints(self, k: int) -> list[BvhJoint]:
-        """The joints of skeleton k, a BVH hierarchy (ArchiveError if it is none)."""
-        record = self.meta["skeletons"][k]
+    def stored_skeleton(self, k: int) -> tuple:
+        """(skeleton, model) of skeleton k, as its format reads it (`registry.InputFormat.stored`);
+        a lossless archive's BVH hierarchy has no model, which its clips do not need."""
+        entry = self.meta["skeletons"][k]
         try:
-            text = self.skeleton_text(k).encode("latin-1").decode(record["encoding"])
-            if not text.endswith(("\n", "\r")):
-                raise ValueError("it does not end with a line end, before which MOTION would begin")
-            return parse_hierarchy(text, record["name"])
-        except (MocapFormatError, ValueError) as exc:
-            raise ArchiveError(f"skeletons: skeleton {k} is not a valid BVH hierarchy ({exc})", self.path) from exc
-
-    @_built_once
-    def bvh_skeleton(self, k: int) -> BvhSkeleton:
-        """Skeleton k, a BVH hierarchy, with its model and its clips' channel layout."""
-        record = self.meta["skeletons"][k]
-        try:
-            return bvh_skeleton(self.bvh_joints(k), record["units"], record["name"])
-        except MocapFormatError as exc:
-            if isinstance(exc, ArchiveError):
-                raise
-            raise ArchiveError(f"skeletons: skeleton {k} has no model ({exc})", self.path) from exc
+            return stored_format(entry).stored(self.skeleton_text(k).encode("latin-1"), entry, self.settings.lossless)
+        except ValueError as exc:
+            raise ArchiveError(f"skeletons: skeleton {k} {exc}", self.path) from exc
 
     @_built_once
     def _decode_tail(self, k: int, layout: ChannelLayout) -> DecodeTail:
@@ -424,7 +380,7 @@ class Archive:
         # pickled back from a worker (the shared CMU set at 1 cm, -j 2: 0.89x the time of worker
         # processes). What the threads share is built once (`_built_once`); the skeletons first,
         # here, in the order of their first clips, so that their warnings come in -j 1's order.
-        for k in dict.fromkeys(self.clips[index]["skeleton"] for kind, index in entries if kind == "amc"):
+        for k in dict.fromkeys(self.clips[index]["skeleton"] for kind, index in entries if kind == "motion"):
             try:
                 self._model(k)
             except ArchiveError:
@@ -442,7 +398,7 @@ class Archive:
         shared CMU set). The workers read this archive's open file: opening it again in each
         measured no faster (HDF5 reads with pread; every stream read is checked against its CRC32)."""
         _SHARED["archive"] = self
-        clips = [entry for entry in entries if entry[0] == "amc"]
+        clips = [entry for entry in entries if entry[0] == "motion"]
         if jobs > 1 and len(clips) > 1:  # decode one clip here first: numba loads its kernels once, before the
             self.file_bytes(*clips[0])  # fork, not once in each worker (about a second each)
         try:
@@ -453,9 +409,9 @@ class Archive:
 
 @one_blas_thread
 def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: int = 1) -> dict:
-    """Write the ASF and AMC files of the clips matching `patterns` (all by default) under `out_dir`,
-    made by `jobs` threads (worker processes for a lossless archive: `Archive.made_files`) and
-    written here one at a time, in the archive's order.
+    """Write the files of the clips matching `patterns` (all by default), and of their skeletons,
+    under `out_dir`, made by `jobs` threads (worker processes for a lossless archive:
+    `Archive.made_files`) and written here one at a time, in the archive's order.
 
     Every path comes from the archive's meta, checked on opening to be relative, free of '.'
     and '..' and unique (`meta.validate`); each file is also refused if its folder resolves
@@ -470,7 +426,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
             raise MocapFormatError(f"no clip matches {', '.join(patterns)}", archive_path)
         folders = {PurePosixPath(archive.clips[i]["path"]).parent for i in chosen}
         targets = {out.joinpath(*path.split("/")): (kind, index) for path, (kind, index) in archive.files.items()
-                   if (index in chosen if kind == "amc" else PurePosixPath(path).parent in folders)}
+                   if (index in chosen if kind == "motion" else PurePosixPath(path).parent in folders)}
         root = os.path.realpath(out)
         for path in targets:
             if os.path.commonpath([root, os.path.realpath(path.parent)]) != root:
@@ -486,7 +442,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
                 closing(archive.made_files([entry for _, entry in entries], jobs)) as made:
             for (path, (kind, index)), data in zip(entries, made):
                 write_file_atomically(path, data)
-                frames += archive.clips[index]["frames"] if kind == "amc" else 0
+                frames += archive.clips[index]["frames"] if kind == "motion" else 0
                 bar.update()
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
 

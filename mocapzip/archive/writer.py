@@ -46,11 +46,9 @@ from mocapzip.codec.pca import CovarianceAccumulator
 from mocapzip.formats.amc import Motion
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveWriter
-from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
 from mocapzip.inputs.discover import ClipSource, find_clips, no_clips, record_skip
 from mocapzip.defaults import DEFAULT_CACHE_MB, UNITS_CM
-from mocapzip.motion.bvh_skeleton import BvhSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX, MAX_DECODED_STREAM_BYTES
 from mocapzip.parallel import imap, kept_workers, on_a_cluster, one_blas_thread, parallel_map, shipped_with_tasks
 from mocapzip.progress import progress
@@ -91,7 +89,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     sources = find_clips(inputs, asf=asf, skipped=skipped)
     if not sources and not skipped:
         raise no_clips(inputs)
-    _refuse_input_as_output(output, [p for s in sources for p in (s.amc, s.asf)]
+    _refuse_input_as_output(output, [p for s in sources for p in (s.motion, s.skeleton)]
                             + [p for p in (asf, settings.classes) if p is not None and os.path.isfile(p)])
     keeps_all = not settings.lossless and (settings.segment or parse_auto(settings.classes) is not False)
     reader = ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
@@ -105,9 +103,9 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         sources, rows = scan.sources, scan.rows
         skeletons = _skeletons_of(sources, reader)  # only the skeletons of the clips kept
         skeleton_paths = list(skeletons)
-        number = {id(skeleton): k for k, skeleton in enumerate(skeletons.values())}
+        number = {id(skeleton): k for k, (_, skeleton) in enumerate(skeletons.values())}
         for source, row in zip(sources, rows):
-            row["skeleton"] = number[id(reader.skeleton(source.asf)[0])]
+            row["skeleton"] = number[id(reader.skeleton(source))]
         coding_units = _units(scan, reader, settings.segment and not settings.lossless)
         auto_report: dict = {}
         unit_class = _unit_classes(scan, coding_units, reader, settings, jobs, auto_report)
@@ -138,7 +136,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         meta = {
             "tool": f"mocapzip {__version__}",
             "settings": stored_settings,
-            "skeletons": [_skeleton_record(p, skeletons[p], reader) for p in skeleton_paths],
+            "skeletons": [fmt.entry(p.name, skeleton) for p, (fmt, skeleton) in skeletons.items()],
             "classes": classes_meta,
             "clips": rows,
         }
@@ -149,7 +147,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         order = ["meta", "skeletons", *sorted(writer.names)]
         # Checked as every reader checks them: compress never writes an archive a reader refuses.
         validate_meta(meta, order, os.fspath(output), FORMAT_VERSION)
-        texts = [_skeleton_bytes(p, skeletons[p], reader) for p in skeleton_paths]
+        texts = [skeleton.text for _, skeleton in skeletons.values()]
         unpacked = {"meta": json.dumps(meta, sort_keys=True).encode(), "skeletons": pack_blobs(texts)}
         for name, data in unpacked.items():
             if len(data) > MAX_DECODED_STREAM_BYTES:
@@ -157,7 +155,7 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
                                        f"{MAX_DECODED_STREAM_BYTES:,} a reader accepts: compress fewer clips at once",
                                        output)
         writer.add("meta", encode_bytes(unpacked["meta"], dictionary(STREAM_DICTIONARIES["meta"])))
-        writer.add("skeletons", encode_skeletons(texts, [not isinstance(skeletons[p], BvhSkeleton) for p in skeleton_paths]))
+        writer.add("skeletons", encode_skeletons(texts, [fmt.asf_skeletons for fmt, _ in skeletons.values()]))
         size = writer.commit(order, contents_of(meta))
     frames = sum(r["frames"] for r in rows)
     largest_mean = max(r["error_cm"] for r in rows)
@@ -165,8 +163,8 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
         "output": os.fspath(output),
         "clips": len(rows),
         "frames": frames,
-        "input_bytes": sum(os.path.getsize(s.amc) for s in sources)
-        + sum(os.path.getsize(p) for p in skeleton_paths if not isinstance(skeletons[p], BvhSkeleton)),
+        "input_bytes": sum(os.path.getsize(s.motion) for s in sources)  # and the skeletons in files of their own
+        + sum(os.path.getsize(p) for p in set(skeleton_paths) - {s.motion for s in sources}),
         "output_bytes": size,
         "bytes_per_frame": size / frames,
         "worst_error_cm": largest_mean,  # kept for old readers: largest_mean_error_cm
@@ -180,29 +178,13 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
 
 
 def _skeletons_of(sources: list[ClipSource], reader: ClipReader) -> dict:
-    """The archive's skeletons, in order: path -> skeleton. Every ASF is one; BVH files of one
-    hierarchy share one, under the first of their paths."""
+    """The archive's skeletons, in order: path -> (input format, `SourceSkeleton`). Every ASF is
+    one; BVH files of one hierarchy share one, under the first of their paths."""
     first: dict = {}
-    for path in sorted({s.asf for s in sources}):
-        skeleton = reader.skeleton(path)[0]
-        first.setdefault(id(skeleton), (path, skeleton))
+    for path, source in sorted({s.skeleton: s for s in sources}.items()):
+        skeleton = reader.skeleton(source)
+        first.setdefault(id(skeleton), (path, (source.format, skeleton)))
     return dict(first.values())
-
-
-def _skeleton_record(path, skeleton, reader: ClipReader) -> dict:
-    """A skeleton's entry in meta: the file it came from, and a BVH hierarchy's text encoding and units."""
-    if not isinstance(skeleton, BvhSkeleton):
-        return {"name": path.name}
-    return {"name": path.name, "format": "bvh", "encoding": reader.hierarchy_text(path)[1], "units": skeleton.units,
-            "units_inferred": reader.units is None and skeleton.units is not None}
-
-
-def _skeleton_bytes(path, skeleton, reader: ClipReader) -> bytes:
-    """What the skeletons stream keeps of a skeleton: the ASF file, or the BVH hierarchy's text."""
-    if not isinstance(skeleton, BvhSkeleton):
-        return read_regular_file(path)
-    text, encoding = reader.hierarchy_text(path)
-    return text.encode(encoding)
 
 
 def _refuse_input_as_output(output, inputs: list) -> None:
@@ -274,7 +256,7 @@ def _first_pass(sources: list[ClipSource], reader: ClipReader, settings: Setting
         with closing(imap(_read_and_take if taken_there else _read_clip, sources, jobs, CLIPS_AHEAD * jobs)) as read:
             for source in progress(sources, desc="read", unit="clip"):
                 try:  # the skeleton here, in order: its warnings and errors come as one process gives them
-                    model, failure = reader.skeleton(source.asf)[1], None
+                    model, failure = reader.skeleton(source).model, None
                 except (MocapFormatError, OSError) as exc:
                     model, failure = None, exc
                 outcome = next(read)  # the clip or what stopped its reading (any other error stops the run)
@@ -348,7 +330,7 @@ def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None] | MocapFor
     try:
         with warnings.catch_warnings():  # read once, quietly: the caller gives the skeleton's warnings
             warnings.simplefilter("ignore")
-            reader.skeleton(source.asf)
+            reader.skeleton(source)
         clip = reader.read(source)
     except (MocapFormatError, OSError) as exc:
         return exc
@@ -391,7 +373,7 @@ def _read_and_take(source: ClipSource) -> _Taken | MocapFormatError | OSError:
     if isinstance(outcome, Exception):
         return outcome
     clip, stream = outcome
-    clip.model = _SHARED["reader"].skeleton(source.asf)[1]
+    clip.model = _SHARED["reader"].skeleton(source).model
     try:
         return replace(_take(clip, stream, _SHARED["settings"], _SHARED["accumulate"]), clip=None)
     except MocapFormatError as exc:
@@ -405,7 +387,7 @@ def _check_codable(clip: LoadedClip) -> None:
     frames, width = clip.poses.shape
     if max(frames, width) * width > MAX_COEFFICIENTS_PER_MATRIX:
         raise MocapFormatError(f"{frames:,} frames of {width:,} pose values are more than a lossy archive may hold "
-                               f"({MAX_COEFFICIENTS_PER_MATRIX:,} per matrix); use --lossless", clip.source.amc)
+                               f"({MAX_COEFFICIENTS_PER_MATRIX:,} per matrix); use --lossless", clip.source.motion)
 
 
 @dataclass
@@ -658,7 +640,7 @@ def _segmented_take(row: dict, index: int, clip: LoadedClip, units: list[_Unit],
         errors = [coding.error for coding in codings]
     else:
         raise TargetError(f"segments joined to {mean_err:.4f} cm, above {settings.error_cm:g} cm; use a larger -e",
-                          clip.source.amc)
+                          clip.source.motion)
     streams, segments = {}, []
     for s, (unit, c, payload, (seg_mean, seg_max)) in enumerate(zip(units, coded, payloads, errors)):
         name = f"clip/{index:05d}/{s:03d}"
@@ -684,15 +666,14 @@ def _clip_row(clip: LoadedClip, fps: float) -> dict:
         "header": m.header,
         "bones": m.bones,
         "counts": m.counts,
-        "angle_unit": "deg" if clip.bvh_text else clip.layout.angle_unit,  # BVH: always degrees
+        "angle_unit": clip.angle_unit,
         "style": asdict(m.style),  # how the source wrote numbers and lines, to write it back alike
     }
     if m.dropped_frames:  # an incomplete last frame left out: the archive says so, not only a warning
         row["dropped_frames"] = m.dropped_frames
     if clip.fps != fps:  # a rate its files state (format 7 on)
         row["fps"] = clip.fps
-    if clip.bvh_text is not None:  # format 8 on
-        row["bvh"] = clip.bvh_text
+    row.update(clip.row_extras)  # its format's fields (format 8 on: a BVH clip's text, `bvh`)
     return row
 
 

@@ -200,18 +200,18 @@ def _load_clips(sources: list[ClipSource], options: BenchOptions):
     reader, clips = ClipReader(None, units=options.units), []
     for source in progress(sources, desc="read", unit="clip"):
         read = reader.motion(source)  # warnings (a dropped last frame) show once, here
-        clips.append(Clip(source, groups[source.relpath], read.motion.n_frames, os.path.getsize(source.amc),
+        clips.append(Clip(source, groups[source.relpath], read.motion.n_frames, os.path.getsize(source.motion),
                           read.motion.values.shape[1], read.model.n_joints,
                           clip_frame_rate(read.stated_fps, DEFAULT_FPS)))
     if any(c.frames == 0 for c in clips):
-        raise MocapFormatError("clip has no frames", next(c.source.amc for c in clips if c.frames == 0))
+        raise MocapFormatError("clip has no frames", next(c.source.motion for c in clips if c.frames == 0))
     return clips, reader
 
 
 def _groups(sources: list[ClipSource], table, inputs) -> dict[str, str]:
     """Motion class of each clip for the per-class report: `table` (CSV/TSV: file, class;
     MANIFEST.tsv works), else a MANIFEST.tsv in or above an input folder, else the skeleton name."""
-    fallback = {s.relpath: (s.asf.stem if s.asf is not None else "all") for s in sources}
+    fallback = {s.relpath: (s.skeleton.stem if s.skeleton is not None else "all") for s in sources}
     candidates = [Path(table)] if table else _find_manifests(inputs)
     found: dict[str, str] = {}
     for path in candidates:
@@ -220,7 +220,7 @@ def _groups(sources: list[ClipSource], table, inputs) -> dict[str, str]:
         for s in sources:
             if s.relpath in found:
                 continue
-            value = by_file.get(s.amc.resolve())
+            value = by_file.get(s.motion.resolve())
             if value is None:  # a table naming clips by stored path (or its tail)
                 value = next((v for k, v in entries.items()
                               if k == s.relpath or k.endswith("/" + s.relpath) or s.relpath.endswith("/" + k)), None)
@@ -259,7 +259,7 @@ def _measure(clip: Clip, reader, decoded_model, decoded_motion) -> tuple[dict, n
     model, motion, pose = _original(clip, reader)
     if decoded_motion.n_frames != motion.n_frames or decoded_motion.values.shape[1] != motion.values.shape[1]:
         raise BenchError(f"decoded clip has shape {decoded_motion.values.shape}, the original {motion.values.shape}",
-                         clip.source.amc)
+                         clip.source.motion)
     decoded_pose = forward(decoded_model, decoded_motion.values, decoded_motion)
     d = joint_distances(pose.positions, decoded_pose.positions)
     return ({**_error_stats(d), "skin_error": skin_error(model, pose, decoded_pose),
@@ -453,8 +453,9 @@ def _run_mcz(task: dict, clips: list[Clip], reader, options: BenchOptions, tmp: 
         clip = by_path[r["path"]]
         share = clip_streams[i] + class_bytes[r["class"]] * r["frames"] / class_frames[r["class"]] \
             + shared * r["frames"] / total_frames
-        written = out / r["path"]  # a BVH file holds its skeleton
-        skeleton_file = written if "bvh" in r else written.parent / skeleton_names[r["skeleton"]]
+        written = out / r["path"]
+        in_its_file = clip.source.skeleton == clip.source.motion  # a BVH file holds its skeleton
+        skeleton_file = written if in_its_file else written.parent / skeleton_names[r["skeleton"]]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             read_back = reader.motion(ClipSource(written, skeleton_file, r["path"]))
@@ -532,6 +533,7 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], reader, options: BenchOp
     from mocapzip.codec.clip_stream import CodedClip, reconstruct
     from mocapzip.formats.amc import Motion, format_amc, parse_amc
     from mocapzip.inputs.clip import load_clips
+    from mocapzip.inputs.registry import AMC
     from mocapzip.ratecontrol.encode import code_clip
     from mocapzip.representations.positions import flips_from_ranges
     from mocapzip.representations.weighted import channels_from_weighted, skeleton_params
@@ -558,17 +560,17 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], reader, options: BenchOp
                   "twist": flips_from_ranges(twist_flips, model, n_frames)}
         values = channels_from_weighted(model, representation, layout, poses, root, params, loaded.axis_weight_cm)
         m = loaded.motion
-        if loaded.bvh_text is None:
+        if clip.source.format is AMC:
             text = format_amc(Motion(m.bones, m.counts, values, m.frame_numbers, m.header, clip.path))  # as decompress does
         decode_seconds += time.perf_counter() - middle
         encode_seconds += middle - start
-        if loaded.bvh_text is None:
+        if clip.source.format is AMC:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 decoded = parse_amc(text.encode("latin-1", "replace"), clip.path)
         else:  # the numbers as a BVH file writes them
             decoded = replace(m, values=loaded.as_written(values))
-        errors, distances[clip.path] = _measure(clip, reader, reader.skeleton(clip.source.asf)[1], decoded)
+        errors, distances[clip.path] = _measure(clip, reader, reader.skeleton(clip.source).model, decoded)
         rows.append({**_sizes(clip, len(payload), len(payload)), **_payload_parts(payload, "context", None), "basis_bytes": 0, **errors})
     settings = {"error_cm": task["error_cm"], "representation": task["representation"],
                 "transform": _transform_config(task["transform"], options.wavelet), "classes": NO_PCA,
@@ -588,8 +590,8 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], reader, options: BenchOp
 
 def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Path) -> dict:
     work = Path(tempfile.mkdtemp(dir=tmp))
-    skeletons = sorted({c.source.asf for c in clips if c.source.asf != c.source.amc})  # a BVH file holds its own
-    originals = [c.source.amc for c in clips] + skeletons
+    skeletons = sorted({c.source.skeleton for c in clips if c.source.skeleton != c.source.motion})  # BVH: in its file
+    originals = [c.source.motion for c in clips] + skeletons
     packed = [work / f"{i:05d}.{codec}" for i in range(len(originals))]
     restored = [work / f"{i:05d}.out" for i in range(len(originals))]
     encoded = _run_child({"op": "lossless", "codec": codec, "decode": False,
@@ -603,10 +605,10 @@ def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Pat
     skeleton_bytes = dict(zip(skeletons, sizes[len(clips):]))
     frames_per_skeleton: dict = {}
     for c in clips:
-        frames_per_skeleton[c.source.asf] = frames_per_skeleton.get(c.source.asf, 0) + c.frames
+        frames_per_skeleton[c.source.skeleton] = frames_per_skeleton.get(c.source.skeleton, 0) + c.frames
     rows = []
     for c, size in zip(clips, sizes):
-        share = size + skeleton_bytes.get(c.source.asf, 0) * c.frames / frames_per_skeleton[c.source.asf]
+        share = size + skeleton_bytes.get(c.source.skeleton, 0) * c.frames / frames_per_skeleton[c.source.skeleton]
         rows.append({**_sizes(c, share, size), "mean_error_cm": 0.0, "p99_error_cm": 0.0, "max_error_cm": 0.0,
                      "skin_error": 0.0, "foot_skate_cm_s": 0.0, "contact_frames": 1})
     shutil_rmtree(work)
@@ -655,7 +657,7 @@ def _run_hou(targets: list[float], clips: list[Clip], reader, options: BenchOpti
             d = np.linalg.norm(decoded - positions, axis=-1)
             distances[clip.path] = d.astype(np.float32)
             rows.append({**_sizes(clip, len(blob), len(blob)), **_error_stats(d), "skin_error": None,
-                         **_skate(reader.skeleton(clip.source.asf)[1], positions, decoded, clip.fps), "hou": params.as_dict()})
+                         **_skate(reader.skeleton(clip.source).model, positions, decoded, clip.fps), "hou": params.as_dict()})
         run = _finish_run({"codec": "hou", "label": f"Hou et al. 2015, best (L, k, Q) per clip for mean error <= {t:g} cm",
                            "target_error_cm": t,
                            "settings": {"grid": {k: list(v) for k, v in grid.items()}, "basis_bits": 16,
@@ -675,7 +677,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], reader, options: Be
     grid = {"grid_l": hou.GRID_L, "grid_k": hou.GRID_K, "grid_q": hou.GRID_Q, **(options.hou_grid or {})}
     groups: dict = {}
     for clip in clips:
-        groups.setdefault(clip.source.asf, []).append(clip)
+        groups.setdefault(clip.source.skeleton, []).append(clip)
     rows = {t: [] for t in targets}
     distances = {t: {} for t in targets}
     missing = {t: [] for t in targets}
@@ -705,7 +707,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], reader, options: Be
                 distances[t][clip.path] = d.astype(np.float32)
                 share = len(stream) + len(basis_blob) * clip.frames / group_frames
                 rows[t].append({**_sizes(clip, share, len(stream)), **_error_stats(d), "skin_error": None,
-                                **_skate(reader.skeleton(clip.source.asf)[1], original, back, clip.fps),
+                                **_skate(reader.skeleton(clip.source).model, original, back, clip.fps),
                                 "basis_bytes": len(basis_blob) * clip.frames / group_frames,
                                 "hou": {"L": choice["L"], "k": choice["k"], "Q": x["Q"]}})
     runs = []

@@ -68,8 +68,8 @@ def pooled_classes(frames: dict[str, int], widths: dict[str, int]) -> dict[str, 
 
 
 def _subject_name(clip: ClipSource) -> str:
-    if clip.asf is not None:
-        return clip.asf.stem
+    if clip.skeleton is not None:
+        return clip.skeleton.stem
     parent = PurePosixPath(clip.relpath).parent
     return str(parent) if str(parent) != "." else "all"
 
@@ -124,7 +124,7 @@ def class_in_table(source: ClipSource, table: dict[str, str]) -> str | None:
     (`cmu/07/07_01.amc` in MANIFEST.tsv names data/cmu/07/07_01.amc), or ends with the
     clip's stored path (a table written from another root).
     """
-    full = source.amc.resolve().as_posix()
+    full = source.motion.resolve().as_posix()
     best = None
     for key, name in table.items():
         tail = key.lstrip("./")

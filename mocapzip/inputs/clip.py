@@ -10,26 +10,22 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from mocapzip.defaults import DEFAULT_FPS
-from mocapzip.formats.amc import Motion, read_amc
-from mocapzip.formats.asf import Skeleton, read_asf
-from mocapzip.formats.bvh import Bvh, motion_lines_problem, parse_hierarchy, read_bvh, read_hierarchy, split_header
-from mocapzip.formats.errors import MocapFormatError
-from mocapzip.inputs.discover import ClipSource, is_bvh
+from mocapzip.formats.amc import Motion
+from mocapzip.inputs.discover import ClipSource
 from mocapzip.inputs.glitches import Glitch, find_glitches
+from mocapzip.inputs.registry import SourceMotion, SourceSkeleton
 from mocapzip.motion import compiled
 from mocapzip.progress import progress
 from mocapzip.representations import get_representation
 from mocapzip.representations.base import Encoded
 from mocapzip.representations.weighted import DecodeTail
 from mocapzip.representations.positions import TwistChoice, flip_ranges, twisted_bones
-from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, unmodelled
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 
 
@@ -61,8 +57,9 @@ class LoadedClip:
     axes_from_positions: bool = False  # the representation's flag (representations.get_representation)
     glitches: list[Glitch] | None = None  # the source's (`inputs.glitches`; lossy, read with a frame rate)
     fps: float = DEFAULT_FPS  # frames per second (`clip_frame_rate`)
-    bvh_text: dict | None = None  # a BVH clip's text beside its values: {"motion": its MOTION lines, "style"}
-    extra_root: np.ndarray | None = None  # a lossy BVH clip's extra root's channels (`BvhSkeleton.above`), kept exactly
+    angle_unit: str = "deg"  # of its rotation channels, as its row in meta says (`SourceMotion.angle_unit`)
+    row_extras: dict = field(default_factory=dict)  # what its row keeps beside its values (`registry.Extras`)
+    extra_root: np.ndarray | None = None  # channels kept exactly (a lossy BVH clip's extra root: `registry.Extras`)
     _scored_frames: tuple = field(default=(None, None), repr=False, compare=False)  # see _originals
 
     @property
@@ -177,28 +174,6 @@ def clip_frame_rate(stated: float | None, fps: float, from_files: bool = True) -
     return stated if stated and from_files else fps
 
 
-_OPTIONAL_STYLE = {"final_line_end": True, "after": ""}  # a BVH row's style leaves these out where they hold
-
-
-class SourceMotion(NamedTuple):
-    """A clip as read from its files (`ClipReader.motion`)."""
-
-    skeleton: Skeleton | BvhSkeleton
-    model: SkeletonModel
-    motion: Motion  # the channels the codec takes (a BVH clip's: `BvhSkeleton.motion`)
-    bvh: Bvh | None  # the BVH file as read (None: an AMC)
-
-    @property
-    def stated_fps(self) -> float | None:
-        """The frame rate the files state: BVH `Frame Time`, an AMC header, an ASF's documentation."""
-        return self.bvh.fps if self.bvh is not None else self.motion.frame_rate or self.skeleton.frame_rate
-
-    @property
-    def limits(self) -> Skeleton | None:
-        """The ASF whose limits the glitch search checks (a BVH file states none)."""
-        return None if self.bvh is not None else self.skeleton
-
-
 class ClipReader:
     """Reads clips for a codec that visits each several times, keeping those that fit a byte budget.
 
@@ -218,10 +193,8 @@ class ClipReader:
         self.budget_bytes, self.fps = budget_bytes, fps  # fps None: no frame rate, glitches are not looked for
         self.fps_from_files = fps_from_files
         self.units = units  # of BVH OFFSETs (a UNITS_CM name); None: inferred (`infer_units`)
-        self._skeletons: dict = {}  # skeleton path -> (skeleton, model): small, read once
-        self._hierarchy_texts: dict = {}  # BVH path -> (its hierarchy text, encoding)
-        self._hierarchies: dict = {}  # (BVH hierarchy text, encoding) -> BvhSkeleton: one per skeleton
-        self._unmodelled: dict = {}  # hierarchy key of a BvhSkeleton for lossless coding alone -> why it has no model
+        self._skeletons: dict = {}  # skeleton path -> SourceSkeleton: small, read once
+        self._by_key: dict = {}  # a skeleton file, or (format, text) of a skeleton in a clip file -> SourceSkeleton
         self._glitches: dict[ClipSource, list[Glitch]] = {}  # found once per clip, however often it is read
         self._kept: dict[ClipSource, LoadedClip] = {}
         self._kept_bytes = 0
@@ -243,81 +216,47 @@ class ClipReader:
         Without a representation (lossless) a truncated last frame is refused: it could not
         come back byte for byte. Lossy reading drops it (`Motion.dropped_frames`)."""
         lossless = self.representation_name is None
-        source_motion = self.motion(source, lossless)
-        skeleton, model, motion, bvh = source_motion
-        bvh_text = extra_root = None
-        if bvh is not None:
-            if lossless and bvh.style.format(bvh.values) != bvh.frames_text:
-                raise MocapFormatError("its frame lines are not all written alike (numbers, blanks, line ends), so "
-                                       "--lossless could not give the same bytes back", source.amc)
-            # lossless: the frames as written; lossy: numbers as the file's (`BvhSkeleton.motion`)
-            style = bvh.style if lossless else replace(bvh.style, number=f"{motion.style.notation}{motion.style.digits}")
-            stated = {k: v for k, v in asdict(style).items() if k not in _OPTIONAL_STYLE or v != _OPTIONAL_STYLE[k]}
-            bvh_text = {"motion": split_header(bvh.header)[1], "style": stated}
-            problem = motion_lines_problem(bvh_text["motion"], bvh.n_frames)  # what an archive's reader checks
-            if problem:
-                raise MocapFormatError(f"its MOTION lines cannot be kept: {problem}", source.amc)
-            extra_root = None if lossless else skeleton.above_values(bvh)
-            if extra_root is not None:
-                bvh_text["extra_root"] = True
+        read = self.motion(source, lossless)
+        model, motion = read.model, read.motion
+        extras = source.format.extras(read, source, lossless)
         encoded = None
         if self.representation_name is not None:
             encoded = get_representation(self.representation_name, self.axes_from_positions).forward(model, motion)
         clip = LoadedClip(source, model, motion, encoded, self.representation_name, None, self.axis_weight_cm,
-                          self.axes_from_positions, bvh_text=bvh_text, extra_root=extra_root)
+                          self.axes_from_positions, angle_unit=read.angle_unit, row_extras=extras.row,
+                          extra_root=extras.extra_root)
         if self.fps is not None:
-            clip.fps = clip_frame_rate(source_motion.stated_fps, self.fps, self.fps_from_files)
+            clip.fps = clip_frame_rate(read.stated_fps, self.fps, self.fps_from_files)
         if encoded is not None:  # the joints the error is measured against, by the check's own kinematics
             clip.positions = clip.decode_tail.positions(motion.values)
             clip.glitches = self._glitches.get(source)
             if clip.glitches is None and self.fps is not None:
-                clip.glitches = find_glitches(source_motion.limits, model, motion, clip.positions, clip.fps)
+                clip.glitches = find_glitches(read.limits, model, motion, clip.positions, clip.fps)
         return clip
 
-    def motion(self, source: ClipSource, lossless: bool = False) -> "SourceMotion":
-        """The clip's skeleton, model and motion as the codec takes it (`BvhSkeleton.motion` for a
-        BVH file; an AMC's truncated last frame refused if `lossless`, else dropped); raises
-        MocapFormatError or OSError if it cannot be read."""
-        skeleton, model = self.skeleton(source.asf)
-        if not isinstance(skeleton, BvhSkeleton):
-            motion = read_amc(source.amc, skeleton, partial_last_frame="error" if lossless else "drop")
-            return SourceMotion(skeleton, model, motion, None)
-        why_no_model = self._unmodelled.get(self.hierarchy_text(source.asf))
-        if why_no_model is not None and not lossless:  # its joints need the model it could not have
-            raise why_no_model
-        bvh = read_bvh(source.amc)
-        if split_header(bvh.header)[0] != self.hierarchy_text(source.asf)[0]:
-            raise MocapFormatError("its hierarchy is not the one read before (the file changed?)", source.amc)
-        return SourceMotion(skeleton, model, skeleton.motion(bvh, lossless), bvh)
+    def motion(self, source: ClipSource, lossless: bool = False) -> SourceMotion:
+        """The clip as its format reads it (`registry.InputFormat.read`: an AMC's truncated last
+        frame refused if `lossless`, else dropped; a BVH file's channels all if `lossless`, else as
+        its model takes them); raises MocapFormatError or OSError if it cannot be read."""
+        skeleton = self.skeleton(source)
+        if skeleton.model is None and not lossless:  # its joints need the model it could not have
+            raise skeleton.unmodelled
+        return source.format.read(source, skeleton, lossless)
 
-    def skeleton(self, path) -> tuple:
-        """(skeleton, model) of the ASF, or of the BVH file's hierarchy, at `path`, read once;
-        raises MocapFormatError or OSError if it cannot be read. BVH files of one hierarchy share
-        one `BvhSkeleton`."""
+    def skeleton(self, source: ClipSource) -> SourceSkeleton:
+        """The skeleton of `source` (its ASF, its BVH file's hierarchy), read once; raises
+        MocapFormatError or OSError if it cannot be read. Clips whose own files hold their
+        skeleton share one where its text is the same (BVH files of one hierarchy); a skeleton
+        file of its own (an ASF) is one skeleton."""
+        path = source.skeleton
         if path not in self._skeletons:
-            if is_bvh(path.name):
-                key = self.hierarchy_text(path)
-                if key not in self._hierarchies:
-                    joints = parse_hierarchy(key[0], path)
-                    try:
-                        self._hierarchies[key] = bvh_skeleton(joints, self.units, path)
-                    except MocapFormatError as exc:
-                        if self.representation_name is not None:
-                            raise
-                        self._hierarchies[key] = unmodelled(joints, self.units, path)  # lossless keeps the values
-                        self._unmodelled[key] = exc
-                skeleton = self._hierarchies[key]
-                self._skeletons[path] = (skeleton, skeleton.model)
-            else:
-                skeleton = read_asf(path)
-                self._skeletons[path] = (skeleton, SkeletonModel.from_asf(skeleton))
+            fmt = source.format
+            text = fmt.skeleton_text(path)
+            key = path if fmt.skeleton_suffix is not None else (fmt.name, text)
+            if key not in self._by_key:
+                self._by_key[key] = fmt.read_skeleton(text, path, self.units, self.representation_name is None)
+            self._skeletons[path] = self._by_key[key]
         return self._skeletons[path]
-
-    def hierarchy_text(self, path) -> tuple[str, str]:
-        """(hierarchy, encoding) of the BVH file at `path` (`formats.bvh.read_hierarchy`), read once."""
-        if path not in self._hierarchy_texts:
-            self._hierarchy_texts[path] = read_hierarchy(path)
-        return self._hierarchy_texts[path]
 
     def load(self, source: ClipSource) -> LoadedClip:
         """The kept clip, or the clip read again, quietly: its first reading gave its warnings."""

@@ -1,7 +1,8 @@
-"""Finding clips on disk: every AMC under the inputs, each paired with its skeleton (ASF), and
-every BVH file, which is its own skeleton.
+"""Finding clips on disk: every clip file under the inputs (a suffix of an input format's,
+`inputs.registry`), each paired with its skeleton: an AMC with an ASF, a BVH file with itself.
 
-An AMC pairs with the ASF the user names (`--asf`), or with the one in its own folder. A folder
+A clip whose format keeps its skeleton in a file of its own (an AMC, whose skeleton is an ASF)
+pairs with the one the user names (`--asf`), or with the one in its own folder. A folder
 may hold several: copies of one skeleton (CMU ships `07.asf` and `07-walk.asf`, which differ
 only in line ends) count as one; different ones pair each AMC with the ASF whose name begins its
 own (`07_01.amc` with `07.asf`), and a warning says so; an AMC that no name fits is ambiguous.
@@ -20,36 +21,32 @@ from pathlib import Path
 
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import check_regular_file, read_regular_file
+from mocapzip.inputs.registry import InputFormat, clip_format, clip_suffixes, input_formats
 
 
 @dataclass(frozen=True)
 class ClipSource:
     """One clip's motion file, its skeleton file, and the path it is stored under in an archive."""
 
-    amc: Path  # the motion: an AMC, or a BVH file
-    asf: Path | None  # the skeleton: an ASF, or the BVH file itself
+    motion: Path  # the clip's file: an AMC, a BVH file
+    skeleton: Path | None  # its skeleton's file: an ASF, or the clip's own file (BVH); None: not found
     relpath: str  # POSIX path relative to the input directory (or the bare file name)
 
-
-def _is_amc(name: str) -> bool:
-    return name.lower().endswith(".amc")
-
-
-def is_bvh(name: str) -> bool:
-    return name.lower().endswith(".bvh")
+    @property
+    def format(self) -> InputFormat:
+        """The clip's input format, by its file's suffix (`inputs.registry`)."""
+        return clip_format(self.motion.name)
 
 
-def _is_clip(name: str) -> bool:
-    return _is_amc(name) or is_bvh(name)
-
-
-def _is_asf(name: str) -> bool:
-    return name.lower().endswith(".asf")
+def _is_skeleton_file(name: str) -> bool:
+    """Whether `name` is a skeleton file some format's clips pair with (an ASF)."""
+    return any(f.skeleton_suffix and name.lower().endswith(f.skeleton_suffix) for f in input_formats())
 
 
 def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = None,
                require_skeleton: bool = True, skipped: list | None = None) -> list[ClipSource]:
-    """All AMC and BVH files under `inputs` (directories are walked recursively), sorted by stored path.
+    """All clip files under `inputs` (directories are walked recursively), sorted by stored path.
+    `asf`: the skeleton file of every clip whose format pairs with one (an AMC's ASF).
 
     Raises MocapFormatError for a missing input, a folder that cannot be listed, or (with
     `require_skeleton`) an AMC with no skeleton or an ambiguous one; without `require_skeleton`
@@ -65,12 +62,12 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
     for item in inputs:
         path = Path(item)
         if path.is_dir():
-            clips += _amcs_under(path, skipped)
+            clips += _clips_under(path, skipped)
         elif path.is_file():
-            if not _is_clip(path.name):
-                if _is_asf(path.name):
+            if clip_format(path.name) is None:
+                if _is_skeleton_file(path.name):
                     continue  # a skeleton named on the command line pairs by folder below
-                raise MocapFormatError("not a clip (expected the .amc or .bvh extension)", path)
+                raise MocapFormatError(f"not a clip (expected the {' or '.join(clip_suffixes())} extension)", path)
             clips.append(ClipSource(path, None, path.name))
         elif path.is_symlink():
             raise MocapFormatError("symbolic link loop or dangling symbolic link", path)
@@ -81,30 +78,33 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
     seen: dict[str, Path] = {}
     for clip in clips:
         if clip.relpath in seen:
-            raise MocapFormatError(f"two inputs would be stored as '{clip.relpath}' (also {seen[clip.relpath]})", clip.amc)
-        seen[clip.relpath] = clip.amc
-    paired, folders = [], {}
+            raise MocapFormatError(f"two inputs would be stored as '{clip.relpath}' (also {seen[clip.relpath]})",
+                                   clip.motion)
+        seen[clip.relpath] = clip.motion
+    paired, folders = [], {}  # (folder, skeleton suffix) -> its skeleton files, grouped
     for c in clips:
-        if is_bvh(c.amc.name):
-            paired.append(ClipSource(c.amc, c.amc, c.relpath))
+        fmt = c.format
+        if fmt.skeleton_suffix is None:  # the clip's file holds its skeleton
+            paired.append(ClipSource(c.motion, c.motion, c.relpath))
             continue
         try:
-            if forced is None and c.amc.parent not in folders:
-                folders[c.amc.parent] = _skeletons_in_folder(c.amc.parent)
-            asf = forced or _skeleton_of(c.amc, folders[c.amc.parent], require_skeleton)
-            paired.append(ClipSource(c.amc, asf, c.relpath))
+            where = (c.motion.parent, fmt.skeleton_suffix)
+            if forced is None and where not in folders:
+                folders[where] = _skeletons_in_folder(*where)
+            skeleton = forced or _skeleton_of(c.motion, folders[where], require_skeleton)
+            paired.append(ClipSource(c.motion, skeleton, c.relpath))
         except MocapFormatError as exc:
             if skipped is None:
                 raise
             record_skip(skipped, c, exc)
-    for folder, groups in folders.items():
+    for (folder, suffix), groups in folders.items():
         if len(groups) > 1:
-            _say_pairings(folder, groups, [c for c in paired if c.amc.parent == folder])
+            _say_pairings(folder, suffix, groups, [c for c in paired if c.motion.parent == folder])
     return sorted(paired, key=lambda c: c.relpath)
 
 
-def _amcs_under(top: Path, skipped: list | None) -> list[ClipSource]:
-    """Every AMC and BVH file under folder `top`, stored relative to it. A folder that cannot be listed
+def _clips_under(top: Path, skipped: list | None) -> list[ClipSource]:
+    """Every clip file under folder `top`, stored relative to it. A folder that cannot be listed
     raises MocapFormatError or, with a `skipped` list, is recorded there under its path."""
 
     def unlisted(error: OSError) -> None:
@@ -118,15 +118,15 @@ def _amcs_under(top: Path, skipped: list | None) -> list[ClipSource]:
     for folder, dirs, files in os.walk(top, onerror=unlisted):
         dirs.sort()
         for name in sorted(files):
-            if _is_clip(name):
-                amc = Path(folder) / name
-                found.append(ClipSource(amc, None, amc.relative_to(top).as_posix()))
+            if clip_format(name) is not None:
+                motion = Path(folder) / name
+                found.append(ClipSource(motion, None, motion.relative_to(top).as_posix()))
     return found
 
 
 def no_clips(inputs) -> MocapFormatError:
     """The error for inputs that hold no clip."""
-    return MocapFormatError("no clips found (.amc, .bvh)", ", ".join(map(os.fspath, inputs)))
+    return MocapFormatError(f"no clips found ({', '.join(clip_suffixes())})", ", ".join(map(os.fspath, inputs)))
 
 
 def record_skip(skipped: list, clip: ClipSource, exc: Exception) -> None:
@@ -141,11 +141,11 @@ def _record(skipped: list, relpath: str, exc: Exception) -> None:
     warnings.warn(f"skipped {relpath}: {error}", stacklevel=4)
 
 
-def _skeletons_in_folder(folder: Path) -> list[list[Path]]:
-    """The folder's .asf files grouped by skeleton: files alike but for their line ends are one
-    group. Any non-folder .asf counts, so that a FIFO or a dangling link is refused by name when
-    read; one that cannot be read here stays a group of its own."""
-    candidates = sorted(p for p in folder.iterdir() if _is_asf(p.name) and not p.is_dir())
+def _skeletons_in_folder(folder: Path, suffix: str) -> list[list[Path]]:
+    """The folder's skeleton files (`suffix`: .asf) grouped by skeleton: files alike but for their
+    line ends are one group. Any non-folder one counts, so that a FIFO or a dangling link is refused
+    by name when read; one that cannot be read here stays a group of its own."""
+    candidates = sorted(p for p in folder.iterdir() if p.name.lower().endswith(suffix) and not p.is_dir())
     if len(candidates) < 2:
         return [[p] for p in candidates]
     groups: dict[bytes | Path, list[Path]] = {}
@@ -158,38 +158,41 @@ def _skeletons_in_folder(folder: Path) -> list[list[Path]]:
     return list(groups.values())
 
 
-def _names_the_clip(asf: Path, amc: Path) -> bool:
-    """Whether the ASF's name begins the AMC's, up to a boundary: 07.asf names 07_01.amc and
-    07-walk.amc, not 070_01.amc."""
-    stem, clip = asf.stem.lower(), amc.stem.lower()
+def _names_the_clip(skeleton: Path, motion: Path) -> bool:
+    """Whether the skeleton file's name begins the clip's, up to a boundary: 07.asf names 07_01.amc
+    and 07-walk.amc, not 070_01.amc."""
+    stem, clip = skeleton.stem.lower(), motion.stem.lower()
     return clip.startswith(stem) and (len(clip) == len(stem) or not clip[len(stem)].isalnum())
 
 
-def _skeleton_of(amc: Path, groups: list[list[Path]], required: bool) -> Path | None:
-    """The folder's one skeleton, or the one with a file whose name begins the AMC's (that file;
+def _skeleton_of(motion: Path, groups: list[list[Path]], required: bool) -> Path | None:
+    """The folder's one skeleton, or the one with a file whose name begins the clip's (that file;
     of several, the longest name); the first of its copies where one skeleton has no such name."""
-    fitting = [p for group in groups for p in group if _names_the_clip(p, amc)]
+    fitting = [p for group in groups for p in group if _names_the_clip(p, motion)]
     if fitting:
         return max(fitting, key=lambda p: len(p.stem))
     if len(groups) == 1:
         return groups[0][0]
     if not groups:
-        error = MocapFormatError("no skeleton: no .asf file in its folder (pass --asf FILE)", amc)
+        suffix = clip_format(motion.name).skeleton_suffix
+        error = MocapFormatError(f"no skeleton: no {suffix} file in its folder (pass --asf FILE)", motion)
     else:
         names = ", ".join(p.name for group in groups for p in group)
         error = MocapFormatError(f"ambiguous skeleton: {len(groups)} different skeletons in its folder ({names}), "
-                                 "none named like the clip; pass --asf FILE", amc)
+                                 "none named like the clip; pass --asf FILE", motion)
     if required:
         raise error
     warnings.warn(str(error), stacklevel=4)
     return None
 
 
-def _say_pairings(folder: Path, groups: list[list[Path]], clips: list[ClipSource]) -> None:
-    """One warning for a folder of several different skeletons: which AMCs took which."""
+def _say_pairings(folder: Path, suffix: str, groups: list[list[Path]], clips: list[ClipSource]) -> None:
+    """One warning for a folder of several different skeletons (files ending in `suffix`): which
+    clips took which."""
     if not clips:
         return
-    counts = {p: sum(1 for c in clips if c.asf == p) for group in groups for p in group}
+    counts = {p: sum(1 for c in clips if c.skeleton == p) for group in groups for p in group}
     pairs = ", ".join(f"{p.name} ({n} clip{'' if n == 1 else 's'})" for p, n in counts.items() if n)
-    warnings.warn(f"{folder}: {len(groups)} different skeletons; each AMC paired with the .asf whose "
+    kind = clips[0].format.name.upper()
+    warnings.warn(f"{folder}: {len(groups)} different skeletons; each {kind} paired with the {suffix} whose "
                   f"name begins its own: {pairs}", stacklevel=3)

@@ -6,9 +6,8 @@ from __future__ import annotations
 import os
 
 from mocapzip.defaults import DEFAULT_FPS
-from mocapzip.formats.amc import read_amc
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
-from mocapzip.inputs.discover import find_clips, is_bvh, no_clips
+from mocapzip.inputs.discover import find_clips, no_clips
 from mocapzip.inputs.glitches import find_glitches
 from mocapzip.motion.kinematics import forward
 from mocapzip.progress import progress
@@ -25,33 +24,31 @@ def inspect_paths(paths, asf=None, fps: float | None = None, check: bool = False
     reader = ClipReader(None, units=units)
     rows = []
     for clip in progress(clips, desc="inspect", unit="clip"):
-        if clip.asf is None:  # an AMC without a skeleton: its frames, not its joints
-            read, motion = None, read_amc(clip.amc)
-            stated = motion.frame_rate
+        if clip.skeleton is None:  # an AMC without a skeleton: its frames, not its joints
+            read = clip.format.read(clip, None, False)
         else:
             # an AMC's cut last frame dropped (with a warning); a BVH clip's channels all, or with --check
             # the joints, as lossy coding sees them
-            read = reader.motion(clip, lossless=is_bvh(clip.amc.name) and not check)
-            motion = read.motion
-            stated = read.stated_fps
-        rate = clip_frame_rate(stated, fps or DEFAULT_FPS, from_files=fps is None)
+            read = reader.motion(clip, lossless=clip.format.inspects_lossless and not check)
+        motion = read.motion
+        rate = clip_frame_rate(read.stated_fps, fps or DEFAULT_FPS, from_files=fps is None)
         rows.append({
             "path": clip.relpath,
             "frames": motion.n_frames,
-            "dof": int(motion.values.shape[1]) if read is None or read.bvh is None else int(read.bvh.values.shape[1]),
+            "dof": int(read.channels_in_file),
             "fps": rate,
             "seconds": motion.n_frames / rate,
-            "skeleton": None if clip.asf is None else os.fspath(clip.asf),
-            "bytes": os.path.getsize(clip.amc),
+            "skeleton": None if clip.skeleton is None else os.fspath(clip.skeleton),
+            "bytes": os.path.getsize(clip.motion),
         })
-        if check and read is not None:
+        if check and clip.skeleton is not None:
             positions = forward(read.model, motion.values, motion).positions
             rows[-1]["glitches"] = [g.as_dict() for g in find_glitches(read.limits, read.model, motion, positions, rate)]
     total = {
         "clips": len(rows),
         "frames": sum(r["frames"] for r in rows),
         "seconds": sum(r["seconds"] for r in rows),
-        "skeletons": len({id(reader.skeleton(c.asf)[0]) for c in clips if c.asf is not None}),  # BVH: hierarchies
+        "skeletons": len({id(reader.skeleton(c)) for c in clips if c.skeleton is not None}),  # BVH: hierarchies
         "bytes": sum(r["bytes"] for r in rows),
     }
     return {"fps": fps, "clips": rows, "total": total}  # fps None: each clip's own

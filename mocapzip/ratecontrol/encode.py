@@ -30,7 +30,6 @@ from mocapzip.codec.foot_lock import Stances
 from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
-from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.clip import FinalCheck
 from mocapzip.parallel import parallel_map
 from mocapzip.ratecontrol.max_error import Achieved, Bounds, TargetError, achieved, smallest_within
@@ -145,7 +144,7 @@ def _coded_with(basis: ClassBasis, precision: float, basis_of, clips, target: fl
         basis = basis_of(basis.q, precision)
     raise TargetError(f"no coding met {target:g} cm (this clip reached {worst:.4f} cm): the target is "
                       "finer than the precision of the clip's numbers allows; use a larger -e, or --lossless",
-                      clips[index].source.amc)
+                      clips[index].source.motion)
 
 
 def _estimated(bases: list[ClassBasis], jobs: int) -> tuple[list[int], list[list]]:

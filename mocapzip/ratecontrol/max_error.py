@@ -141,7 +141,7 @@ def _check_range(clip, values: np.ndarray) -> None:
     archive (`Archive._check_range`), so a source value at the limit cannot be coded lossy."""
     if not in_value_range(values):
         raise TargetError(f"its decoded values would pass +-{MAX_ABS_VALUE:g}, the most any file may hold (values "
-                          "that close to the limit cannot be coded lossy); use --lossless", clip.source.amc)
+                          "that close to the limit cannot be coded lossy); use --lossless", clip.source.motion)
 
 
 def _unbounded(clip, why: str) -> TargetError:
@@ -149,7 +149,7 @@ def _unbounded(clip, why: str) -> TargetError:
     Its values print with the digits its file used (`as_written`): near 1e8, 6 digits are metres."""
     return TargetError(f"no coding holds its joints within the bound ({why}): the bound is finer than the "
                        "precision of the clip's numbers allows; use a larger --max-error, or --lossless",
-                       clip.source.amc)
+                       clip.source.motion)
 
 
 def joint_limits(clip, bounds: Bounds, repaired: np.ndarray | None = None) -> np.ndarray | None:
