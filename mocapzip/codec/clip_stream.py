@@ -5,7 +5,7 @@ Layout (format 2 on; docs/format.md): `f32 pose_step`, `f32 root_step`, then one
 stream of the coefficient coder named in the settings ("context" or "primed",
 `mocapzip.codec.entropy.coefficients`): the frames x Q pose coefficients and, for the
 representations with a root track, its frames x 4 coefficients. Format 1's layout is read by
-`mocapzip.archive.legacy`.
+`mocapzip.legacy.streams`.
 
 The root track is scaled into the pose's units (cm) before its transform, yaw by a typical
 joint radius, because a yaw error moves a joint by (distance from root) x (angle).
