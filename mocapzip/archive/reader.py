@@ -1,8 +1,8 @@
 """`mcz decompress` / `info` / `test`: an .mcz archive -> its clips, decoded on demand.
 
 The reader trusts nothing in the file (`meta.validate`, `mocapzip.limits`) and reads the newest
-format; what an older one does differently (`mocapzip.legacy.format_of`, asked once by the
-container) it takes from the archive's `format`, and its old layouts are decoded by
+format; what an older one does differently (`mocapzip.legacy.format_of`, which the container
+asks) it takes from the archive's `format`, and its old layouts are decoded by
 `mocapzip.legacy.streams`. Every clip goes through one decode tail
 (`representations.weighted.DecodeTail`), as the encoder's error check does.
 """

@@ -10,18 +10,20 @@ differently is decoded here: `container` (formats 1 to 6's index) and `streams` 
 
 | format_version | differs from the newest in |
 |---|---|
-| 1 | all of format 2's; class and clip streams of `streams.class_v1`, `clip_v1` (coder "zstd", `streams.ZstdCoder`); no `coefficient_coder` setting (read as "zstd") |
-| 2 | all of format 3's; class streams of `streams.class_v2`; coder "context" only |
-| 3 | all of format 4's; no `axes_from_positions` setting (read as false: every bone stores its axis) |
-| 4 to 6 | all of format 7's; the index a zstd frame in a dataset, under a header CRC (`container`); `meta` and `skeletons` without dictionaries, `skeletons` a JSON list of texts (`streams.skeleton_texts`); no meta field of a later format (`FIELDS_ADDED_IN`) |
-| 7 to 9 | all of format 10's; `skeletons` the texts packed (`streams.skeleton_texts`) |
-| 10, 11 | the index's clips table without the three error columns |
-| 12 | nothing: the newest |
+| 1 | as format 2 but: class and clip streams of `streams.class_v1` and `clip_v1` (coder "zstd", `streams.ZstdCoder`); no `coefficient_coder` setting (read as "zstd") |
+| 2 | as format 3 but: class streams of `streams.class_v2`; coder "context" only |
+| 3 | as format 4 but: no `axes_from_positions` setting (read as false: every bone stores its axis) |
+| 4 to 6 | as format 7 but: the container of `container` (a header CRC, the index a zstd frame in a dataset); `meta` and `skeletons` without dictionaries, `skeletons` a JSON list of texts (`streams.skeleton_texts`) |
+| 7 to 9 | as format 10 but: no `contents` in the index; `skeletons` the texts packed (`streams.skeleton_texts`) |
+| 10, 11 | the index's clips table without its three error columns |
+| 12 | nothing: it is the newest |
+
+Every format also refuses the meta fields later ones added (`FIELDS_ADDED_IN`).
 
 The lossless channel code keeps its own layout number in each stream (1: the first format-1
 writers, before the rANS residual coder; 2: every later writer), read by `mocapzip.codec.lossless`.
-This package imports nothing of mocapzip (its modules do), so the container below every other
-package can ask it.
+This `__init__` imports nothing of mocapzip (its modules do), so that the container, below every
+other package, can ask it.
 """
 
 from __future__ import annotations
