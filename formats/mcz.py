@@ -4,8 +4,9 @@ The container knows nothing about motion capture; the codec decides what the str
 All payloads live back to back in ONE uint8 dataset (an HDF5 object costs hundreds of bytes,
 so one object per stream would dwarf small streams), described by a JSON index that stock HDF5
 tools print (`h5dump -a index`): stream names, lengths and CRC32s, readable without mocapzip.
-Format 7 holds the index in a root attribute; formats 1 to 6 held it zstd-compressed in a second
-dataset, and `ArchiveReader` still reads that layout (`_legacy_index`), never writes it.
+The index is a root attribute, or a deflated dataset when it is large. Formats 1 to 6 held it
+zstd-compressed in a dataset: `ArchiveReader` reads that layout through `mocapzip.legacy.container`
+(`legacy.format_of` says which layout an archive has), and nothing writes it.
 """
 
 from __future__ import annotations
@@ -23,14 +24,14 @@ import secrets
 import stat
 import tempfile
 import zlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 
 import h5py
 import numpy as np
-import zstandard
 from h5py import h5d, h5p, h5t, h5z
 
+from mocapzip.legacy import Format, format_of
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import open_regular_file
@@ -52,10 +53,7 @@ _ATTRIBUTES = ("magic", "format_version", "index", "index_crc32")
 # index about 2.5x (measured crossover: about 360 bytes of JSON with a clips table).
 INDEX_ATTRIBUTE_BYTES = 360
 _INDEX_KEYS = ("tool", "names", "lengths", "crc32")
-# Formats 1 to 6: five root attributes and the index as a zstd-coded dataset.
-_LEGACY_ATTRIBUTES = ("magic", "format_version", "tool_version", "index_crc32", "header_crc32")
-_LEGACY_INDEX_KEYS = ("names", "offsets", "lengths", "crc32")
-# The index obeys the limit of every decoded stream (formats 1 to 6: stored and unpacked).
+# The index obeys the limit of every decoded stream (a zstd-coded index, `legacy.container`: stored and unpacked).
 MAX_INDEX_BYTES = MAX_DECODED_STREAM_BYTES
 
 
@@ -89,11 +87,6 @@ def _unique_keys(pairs: list) -> dict:
             raise ValueError(f"a key appears twice in an object: {key[:80]!r}")
         doc[key] = value
     return doc
-
-
-def _legacy_header_crc(format_version: int, tool_version: str, index_crc32: int) -> int:
-    """Formats 1 to 6: CRC32 over the header attributes (format 7 keeps tool_version in the index)."""
-    return zlib.crc32(f"{MAGIC}\n{format_version}\n{tool_version}\n{index_crc32}".encode())
 
 
 def write_archive(
@@ -462,30 +455,33 @@ class ArchiveReader:
                     f"header: archive format_version {self.format_version} is newer than this mocapzip "
                     f"supports (up to {FORMAT_VERSION}); upgrade mocapzip to read it"
                 )
-        if self.format_version >= 7:
+        self.format: Format = format_of(self.format_version)  # what it does differently from the newest
+        if self.format.container == 1:
+            from mocapzip.legacy import container  # formats 1 to 6's layout; it builds on this module
+
+            payload_ds, self._names, lengths, crcs = container.read_index(self, file_size)
+        else:
             with _section(self.path, "header"):
                 in_attribute = "index" in f.attrs  # names only: nothing is read yet
             if in_attribute:
-                payload_ds = self._datasets(file_size, _ATTRIBUTES, ("payload",))["payload"]
+                payload_ds = self._datasets(file_size, _ATTRIBUTES, {"payload": _dataset_problem})["payload"]
                 with _section(self.path, "index"):
                     stored = f.attrs.get_id("index")
                 self._names, lengths, crcs = self._index(stored, (), lambda size: bytes(f.attrs["index"]))
             else:
-                datasets = self._datasets(file_size, tuple(a for a in _ATTRIBUTES if a != "index"), ("index", "payload"))
+                datasets = self._datasets(file_size, tuple(a for a in _ATTRIBUTES if a != "index"),
+                                          {"index": _index_dataset_problem, "payload": _dataset_problem})
                 payload_ds, index_ds = datasets["payload"], datasets["index"]
                 self._names, lengths, crcs = self._index(index_ds.id, (1,), lambda size: self._inflated(index_ds, size))
-        else:
-            datasets = self._datasets(file_size, _LEGACY_ATTRIBUTES, ("index", "payload"))
-            payload_ds = datasets["payload"]
-            self._names, lengths, crcs = self._legacy_index(datasets["index"])
         starts = [0, *itertools.accumulate(lengths)]
         self._entries = dict(zip(self._names, zip(starts, lengths, crcs)))
         if starts[-1] != payload_ds.shape[0]:
             raise self._error(f"index: streams need {starts[-1]} bytes, payload has {payload_ds.shape[0]}")
         self._payload = payload_ds
 
-    def _datasets(self, file_size: int, attributes: tuple[str, ...], items: tuple[str, ...]) -> dict[str, h5py.Dataset]:
-        """The root's datasets `items`, once the root is found to hold nothing the format does not define.
+    def _datasets(self, file_size: int, attributes: tuple[str, ...], items: dict[str, Callable]) -> dict[str, h5py.Dataset]:
+        """The root's datasets `items` (name -> the check that finds what, if anything, is wrong with
+        it), once the root is found to hold nothing the format does not define.
 
         Checked before any data is read: HDF5 can take a dataset's bytes from other files (external
         storage, virtual datasets, external links), which may be a FIFO or /dev/zero, and decode
@@ -499,12 +495,11 @@ class ArchiveReader:
                     state = "missing" if odd[0] in expected else "not in the format"
                     raise self._error(f"header: root {kind} {odd[0]!r} is {state}")
             datasets = {}
-            for name in items:
+            for name, check in items.items():
                 link = f.get(name, getlink=True)
                 if not isinstance(link, h5py.HardLink):  # resolving a soft or external link could open any file
                     raise self._error(f"header: {name} is not a dataset but a link ({type(link).__name__})")
                 ds = f[name]
-                check = _index_dataset_problem if name == "index" and self.format_version >= 7 else _dataset_problem
                 problem = "is not a dataset" if not isinstance(ds, h5py.Dataset) else check(ds, file_size)
                 if problem:
                     raise self._error(f"header: {name} {problem}")
@@ -534,10 +529,10 @@ class ArchiveReader:
             if len(index) != size or zlib.crc32(index) != f.attrs["index_crc32"]:
                 raise self._error("index: CRC32 mismatch")
             doc = parse_json(index)
-        contents = doc.pop("contents", {}) if isinstance(doc, dict) and self.format_version >= 10 else {}
+        contents = doc.pop("contents", {}) if isinstance(doc, dict) and self.format.index_contents else {}
         if not isinstance(doc, dict) or sorted(doc) != sorted(_INDEX_KEYS):
             raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_INDEX_KEYS)}"
-                              + (" (and contents)" if self.format_version >= 10 else ""))
+                              + (" (and contents)" if self.format.index_contents else ""))
         if not isinstance(contents, dict):
             raise self._error("index: contents is not a JSON object")
         self.contents = contents or None  # absent (or empty): nothing to show
@@ -558,35 +553,6 @@ class ArchiveReader:
         if len(data) != size or not inflater.eof or inflater.unused_data:
             raise self._error(f"index: its deflated chunk does not hold exactly its {size} bytes")
         return data
-
-    def _legacy_index(self, index_ds: h5py.Dataset) -> tuple[list[str], list[int], list[int]]:
-        """Formats 1 to 6: the zstd-coded index dataset, and the header CRC over the root attributes."""
-        f = self._file
-        with _section(self.path, "header"):
-            tool_version, index_crc32, header_crc32 = (f.attrs[key] for key in _LEGACY_ATTRIBUTES[2:])
-            if not isinstance(tool_version, bytes):
-                raise self._error(f"header: tool_version is {type(tool_version).__name__}, not a string")
-            self.tool_version = tool_version.decode()
-            if _legacy_header_crc(self.format_version, self.tool_version, index_crc32) != header_crc32:
-                raise self._error("header: CRC32 mismatch in the root attributes")
-        with _section(self.path, "index"):
-            if index_ds.shape[0] > MAX_INDEX_BYTES:
-                raise self._error(f"index: {index_ds.shape[0]} bytes stored, more than the limit of {MAX_INDEX_BYTES}")
-            index = index_ds[:].tobytes()
-            if zlib.crc32(index) != index_crc32:
-                raise self._error("index: CRC32 mismatch")
-            size = zstandard.frame_content_size(index)  # checked before anything is decompressed
-            if size < 0:
-                raise self._error("index: the zstd frame does not state its size")
-            if size > MAX_INDEX_BYTES:
-                raise self._error(f"index: unpacks to {size} bytes, more than the limit of {MAX_INDEX_BYTES}")
-            doc = parse_json(zstandard.ZstdDecompressor().decompress(index, allow_extra_data=False))
-        if not isinstance(doc, dict) or sorted(doc) != sorted(_LEGACY_INDEX_KEYS):
-            raise self._error(f"index: not a JSON object with exactly the keys {', '.join(_LEGACY_INDEX_KEYS)}")
-        names, offsets, lengths, crcs = self._index_columns(doc, _LEGACY_INDEX_KEYS)
-        if [0, *itertools.accumulate(lengths)][:-1] != offsets:
-            raise self._error("index: streams are not stored back to back")
-        return names, lengths, crcs
 
     def _index_columns(self, doc: dict, keys: tuple[str, ...]) -> list[list]:
         """The index's columns `keys` (names first, crc32 last), once their types are checked (a

@@ -11,7 +11,7 @@ The API (docs/api.md) lives in `mocapzip.api`; its names are loaded on first use
 The packages, in pipeline order (docs/architecture.md): `inputs` (which files are clips),
 `motion` (skeletons, kinematics, metrics), `representations` (what the codec compresses),
 `classes` (which clips share a basis), `codec` (the stages), `ratecontrol` (the error budget
-spent), `archive` (compress and decompress), and `bench`; `formats` (the file formats) and `cli`
+spent), `archive` (compress and decompress), `legacy` (old formats, decode only), and `bench`; `formats` (the file formats) and `cli`
 (the command line) install from formats/ and cli/. Beside them: `stages` (the one registry of
 stages), `convert` (`mcz convert`), `parallel` and `cluster` (the work over `-j` processes or a
 Dask cluster), `limits` (what every reader checks), `defaults` (values the CLI and API share

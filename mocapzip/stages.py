@@ -10,7 +10,7 @@ turns it back into an equal stage. An archive's settings name every stage of its
 | representation | a clip's AMC channels <-> the pose matrix the codec compresses | `mocapzip/representations/` |
 | transform | a curve along time <-> as many coefficients | `mocapzip/codec/temporal.py` |
 | quantiser | coefficients <-> integers | `mocapzip/codec/quantise.py` |
-| coefficient coder | integer matrices <-> bytes of a lossy stream | `mocapzip/codec/entropy/coefficients.py` (`mocapzip/archive/legacy.py`: format 1's) |
+| coefficient coder | integer matrices <-> bytes of a lossy stream | `mocapzip/codec/entropy/coefficients.py` (`mocapzip/legacy/streams.py`: format 1's) |
 | lossless coder | AMC channel values <-> bytes, exactly | `mocapzip/codec/lossless.py` |
 
 A new stage is one class in its kind's place, registered; `mcz --help`'s choices, the archive
@@ -28,7 +28,7 @@ KINDS = ("representation", "transform", "quantiser", "coefficient coder", "lossl
 # The modules that define stages, imported when the registry is first asked (not at import
 # time: they import this module for `Stage`, and the CLI starts without NumPy).
 _STAGE_MODULES = ("mocapzip.representations", "mocapzip.codec.temporal", "mocapzip.codec.quantise",
-                  "mocapzip.codec.entropy.coefficients", "mocapzip.codec.lossless", "mocapzip.archive.legacy")
+                  "mocapzip.codec.entropy.coefficients", "mocapzip.codec.lossless", "mocapzip.legacy.streams")
 
 _REGISTRY: dict[str, dict[str, type]] = {kind: {} for kind in KINDS}
 

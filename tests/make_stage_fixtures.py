@@ -91,7 +91,7 @@ def clip_matrices(rng):
 
 
 def format1_zstd_stream(matrices) -> bytes:
-    """Format 1's clip matrices after its two f64 steps (`archive.legacy.ZstdCoder`): u8 count, then
+    """Format 1's clip matrices after its two f64 steps (`legacy.streams.ZstdCoder`): u8 count, then
     per matrix a u32 little-endian length and `encode_sparse` of it, as the format-1 writer
     (git e152d64, mocapzip/lossy.py CodedClip.payload) laid them out. encode_sparse is
     encode_ints or, when smaller, its bitmap layout: the pose matrix here takes the bitmap."""

@@ -34,6 +34,7 @@ from click.testing import CliRunner
 from mocapzip.cli.main import main
 from mocapzip.formats import MocapFormatError, mcz
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader, write_archive
+from mocapzip.legacy.container import header_crc
 
 MCZ = Path(sys.executable).with_name("mcz")
 TIMEOUT = 30  # seconds; a child that blocks fails the test instead of hanging the suite
@@ -263,7 +264,7 @@ def with_index(tmp_path: Path, index: bytes) -> Path:
         f["index"] = np.frombuffer(index, np.uint8)
         f.attrs["index_crc32"] = np.uint32(zlib.crc32(index))
         tool = f.attrs["tool_version"].decode()
-        f.attrs["header_crc32"] = np.uint32(mcz._legacy_header_crc(6, tool, zlib.crc32(index)))
+        f.attrs["header_crc32"] = np.uint32(header_crc(6, tool, zlib.crc32(index)))
     return path
 
 

@@ -24,7 +24,7 @@ from mocapzip.codec.entropy import zstd as entropy
 from mocapzip.codec.entropy.coefficients import encode_matrices
 from mocapzip.codec.entropy.zstd import write_varint
 from mocapzip.codec.lossless import encode_channels
-from mocapzip.archive import legacy
+from mocapzip.legacy import streams as legacy
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES, MAX_FRAMES_PER_CLIP
@@ -140,7 +140,7 @@ def test_lossy_clip_claiming_ten_million_zero_frames(tmp_path):
 def test_zstd_lossy_clip_claiming_ten_million_zero_frames(tmp_path):
     np.testing.assert_array_equal(entropy.decode_ints(zero_ints_claiming((5, 3))), np.zeros((5, 3)))
     payload = struct.pack("<ddB", 1.0, 0.2, 1) + with_length(zero_ints_claiming((TEN_MILLION, 3)))
-    refused_in_child(tmp_path, "from mocapzip.archive.legacy import clip_v1; clip_v1(blob)",
+    refused_in_child(tmp_path, "from mocapzip.legacy.streams import clip_v1; clip_v1(blob)",
                      payload, f"stream declares {TEN_MILLION} array values along one axis")
 
 
@@ -153,7 +153,7 @@ def test_class_basis_claiming_ten_million_pose_values(tmp_path, coder):
     else:
         body = with_length(zero_ints_claiming((m,))) + with_length(zero_ints_claiming((m, q)))
     decoder = "from mocapzip.codec.basis import ClassBasis; ClassBasis.decode(blob)" if coder == "context" \
-        else "from mocapzip.archive.legacy import class_v1; class_v1(blob)"
+        else "from mocapzip.legacy.streams import class_v1; class_v1(blob)"
     refused_in_child(tmp_path, decoder, head + body, f"stream declares {m} matrix rows")
 
 

@@ -1,11 +1,11 @@
 """The stored class basis (`codec.basis.ClassBasis`): exact round trips and reference rows, and the
-layouts of formats 1 and 2 (`archive.legacy`)."""
+layouts of formats 1 and 2 (`legacy.streams`)."""
 
 import numpy as np
 import pytest
 
 from mocapzip.codec.entropy.coefficients import encode_matrices
-from mocapzip.archive import legacy
+from mocapzip.legacy import streams as legacy
 from mocapzip.codec.basis import MEAN_STEP_CM, ClassBasis, _reference_rows
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.codec.entropy.zstd import encode_ints

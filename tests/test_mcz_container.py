@@ -19,6 +19,7 @@ import zstandard
 from mocapzip.formats import MocapFormatError
 from mocapzip.formats import mcz
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader, write_archive
+from mocapzip.legacy.container import header_crc
 
 GOLDEN = Path(__file__).parent / "golden"
 GOLDEN_NEWEST = GOLDEN / f"container_v{FORMAT_VERSION}.mcz"
@@ -245,7 +246,7 @@ def with_legacy_index(tmp_path: Path, doc) -> Path:
         del f["index"]
         f["index"] = np.frombuffer(index, np.uint8)
         f.attrs["index_crc32"] = np.uint32(zlib.crc32(index))
-        f.attrs["header_crc32"] = np.uint32(mcz._legacy_header_crc(6, "golden-container-v6", zlib.crc32(index)))
+        f.attrs["header_crc32"] = np.uint32(header_crc(6, "golden-container-v6", zlib.crc32(index)))
     return path
 
 

@@ -1,5 +1,5 @@
 """A field a format version added is refused in an archive of an older version, as that
-version's readers refused it (`meta.ADDED_IN`), and accepted from its version on."""
+version's readers refused it (`legacy.FIELDS_ADDED_IN`), and accepted from its version on."""
 
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ from pathlib import Path
 import pytest
 
 from mocapzip.archive import Archive
-from mocapzip.archive.meta import ADDED_IN, validate
+from mocapzip.archive.meta import validate
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError
+from mocapzip.legacy import FIELDS_ADDED_IN
 
 GOLDEN = Path(__file__).parent / "golden"
 EXAMPLES = {"coefficient_coder": "context", "axes_from_positions": True, "twist_flips": {"lthumb": [0, 1]},
@@ -53,7 +54,7 @@ def test_each_golden_archive_meets_the_rules_of_its_version(kind, version):
         assert validate(archive.meta, archive._reader.names(), "x.mcz", version)
 
 
-@pytest.mark.parametrize("added, part, name", [(v, p, n) for v, fields in ADDED_IN.items() for p, n in fields])
+@pytest.mark.parametrize("added, part, name", [(v, p, n) for v, fields in FIELDS_ADDED_IN.items() for p, n in fields])
 @pytest.mark.parametrize("version", range(1, FORMAT_VERSION + 1))
 def test_a_field_is_refused_before_the_version_that_added_it(version, added, part, name):
     with Archive(GOLDEN / f"lossy_v{version}.mcz") as archive:

@@ -38,7 +38,7 @@ EXAMPLE_CONFIGS = {
                   {"id": "uniform", "step": 7.5, "dead_zone": 0.45}],
 }
 # Stream versions each decoder must still read, so each needs a fixture.
-STREAM_VERSIONS = {("lossless coder", "decimal"): lossless._KNOWN_VERSIONS}
+STREAM_VERSIONS = {("lossless coder", "decimal"): lossless._KNOWN_LAYOUTS}
 
 
 def stage_cases(kind: str, encodable_only: bool = False) -> list:

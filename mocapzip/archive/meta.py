@@ -23,6 +23,7 @@ from mocapzip.formats.text import MAX_FRAME_RATE
 from mocapzip.formats.mcz import ArchiveError
 from mocapzip.defaults import UNITS_CM
 from mocapzip.inputs.registry import input_formats, stored_format
+from mocapzip.legacy import format_of
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_NATURAL_MODES, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import stage_classes, stage_ids
 
@@ -165,20 +166,6 @@ SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
 )}  # draft 4: an "integer" is one in the JSON text too (later drafts also take 5.0)
 
 
-# Fields a format version added: an older archive carrying one is refused, as that version's readers did.
-ADDED_IN = {
-    2: (("settings", "coefficient_coder"),),
-    4: (("settings", "axes_from_positions"), ("clips", "twist_flips")),
-    5: (("settings", "max_error_cm"), ("clips", "p99_error_cm"), ("clips", "patched_frames")),
-    6: (("settings", "contact_error_cm"), ("settings", "repair_glitches"), ("clips", "repaired")),
-    7: (("settings", "fps_from_files"), ("clips", "fps")),
-    8: (("skeletons", "format"), ("clips", "bvh")),
-    9: (("settings", "plant_feet"), ("clips", "planted_stances")),
-    11: (("settings", "model"), ("settings", "modes"), ("classes", "model"), ("classes", "modes"),
-         ("classes", "levels"), ("clips", "tensor_at")),
-}
-
-
 @functools.cache
 def _schema_check(detailed: bool):
     """The schema compiled. Archives are checked without detailed exceptions, whose code took
@@ -205,13 +192,12 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
         field = name.removeprefix("data").lstrip(".") or "(top level)"
         raise fail(field, exc.message.removeprefix(name).strip()) from None
     settings = meta["settings"]
-    for version, fields in ADDED_IN.items():
-        for part, name in fields if format_version < version else ():
-            rows = [settings] if part == "settings" else meta[part]
-            where = next((i for i, row in enumerate(rows) if name in row), None)
-            if where is not None:
-                field = f"settings.{name}" if part == "settings" else f"{part}[{where}].{name}"
-                raise fail(field, f"format {version} on; this archive is format {format_version}")
+    for added, part, name in format_of(format_version).later_fields:  # refused, as that format's readers did
+        rows = [settings] if part == "settings" else meta[part]
+        where = next((i for i, row in enumerate(rows) if name in row), None)
+        if where is not None:
+            field = f"settings.{name}" if part == "settings" else f"{part}[{where}].{name}"
+            raise fail(field, f"format {added} on; this archive is format {format_version}")
     transform = settings["transform"]
     if transform["id"] == "dwt" and transform["wavelet"] not in pywt.wavelist(kind="discrete"):
         raise fail("settings.transform.wavelet", f"unknown wavelet {transform['wavelet'][:40]!r}")
@@ -477,25 +463,24 @@ def _output_files(meta: dict, fail) -> dict[str, tuple[str, int]]:
     return files
 
 
-# The clips table's columns; format 12 added each clip's achieved joint errors, in cm.
+# The clips table's columns: where, then each clip's achieved joint errors in cm (an older format
+# has fewer: `legacy.Format.contents_columns`).
 CONTENTS_COLUMNS = ["path", "frames", "fps", "skeleton", "mean_error_cm", "p99_error_cm", "max_error_cm"]
-_CONTENTS_COLUMNS_BEFORE_12 = CONTENTS_COLUMNS[:4]
 # Errors to 10 micrometres: enough to read, and the shared CMU archive's index is 550 bytes (0.2 %)
 # smaller than with meta's digits (measured: 3,731 against 4,279 bytes deflated). Meta keeps them all.
 CONTENTS_ERROR_DECIMALS = 3
 
 
-def contents_of(meta: dict, format_version: int | None = None) -> dict:
-    """What the index's `contents` holds (format 10 on): the clips table, for `h5dump -a index`
-    and anyone without mcz to read. Readers never use it; `mcz test` checks it against meta.
-    `format_version`: the archive's (default: the newest), which decides the columns."""
+def contents_of(meta: dict, columns: int = len(CONTENTS_COLUMNS)) -> dict:
+    """What the index's `contents` holds: the clips table, for `h5dump -a index` and anyone
+    without mcz to read. Readers never use it; `mcz test` checks it against meta. `columns`:
+    how many of `CONTENTS_COLUMNS` the archive's format has (default: the newest's, all)."""
     fps, skeletons = meta["settings"]["fps"], meta["skeletons"]
-    with_errors = format_version is None or format_version >= 12
 
     def errors(row: dict) -> list:
         return [None if error is None else round(error, CONTENTS_ERROR_DECIMALS)
-                for error in (row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"])] if with_errors else []
+                for error in (row["error_cm"], row.get("p99_error_cm"), row["max_error_cm"])]
 
-    return {"columns": CONTENTS_COLUMNS if with_errors else _CONTENTS_COLUMNS_BEFORE_12,
+    return {"columns": CONTENTS_COLUMNS[:columns],
             "clips": [[row["path"], row["frames"], row.get("fps", fps), skeletons[row["skeleton"]]["name"],
-                       *errors(row)] for row in meta["clips"]]}
+                       *errors(row)][:columns] for row in meta["clips"]]}

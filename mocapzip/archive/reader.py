@@ -1,11 +1,10 @@
 """`mcz decompress` / `info` / `test`: an .mcz archive -> its clips, decoded on demand.
 
-The reader trusts nothing in the file (`meta.validate`, `mocapzip.limits`) and dispatches on
-the container's `format_version`: format 4 and later formats' streams are decoded by the codec
-modules (what formats 7 and 10 changed in `meta` and `skeletons`, zstd dictionaries and
-predicted skeleton numbers, by branches here), formats 1 to 3's differences by `legacy`.
-Every clip goes through one decode tail (`representations.weighted.DecodeTail`), as the
-encoder's error check does.
+The reader trusts nothing in the file (`meta.validate`, `mocapzip.limits`) and reads the newest
+format; what an older one does differently (`mocapzip.legacy.format_of`, which the container
+asks) it takes from the archive's `format`, and its old layouts are decoded by
+`mocapzip.legacy.streams`. Every clip goes through one decode tail
+(`representations.weighted.DecodeTail`), as the encoder's error check does.
 """
 
 from __future__ import annotations
@@ -21,7 +20,6 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from mocapzip.archive import legacy
 from mocapzip.archive.dictionaries import STREAM_DICTIONARIES, dictionary
 from mocapzip.archive.meta import contents_of
 from mocapzip.archive.meta import validate as validate_meta
@@ -32,7 +30,7 @@ from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.tensor import TensorModel, prediction
 from mocapzip.codec.entropy.coefficients import Priors, check_matrix_shape
-from mocapzip.codec.entropy.zstd import decode_bytes, unpack_blobs
+from mocapzip.codec.entropy.zstd import decode_bytes
 from mocapzip.codec.foot_lock import Stances, hold
 from mocapzip.codec.lossless import decode_channels
 from mocapzip.codec.patches import FramePatches, channel_steps
@@ -41,6 +39,8 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader, parse_json
 from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, in_value_range, write_file_atomically
 from mocapzip.inputs.registry import InputFormat, stored_format
+from mocapzip.legacy import Format
+from mocapzip.legacy import streams as old_streams
 from mocapzip.limits import MAX_ABS_POSE, MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
@@ -85,16 +85,15 @@ class Archive:
             # every file a full decompress writes, each path checked to stay inside the output folder
             self.files = validate_meta(self.meta, self._reader.names(), self.path, self.format_version)
             self._skeleton_texts = self._skeletons()
-            version = self.format_version
-            # fields older formats did not have, as those formats meant them
-            self.settings = Settings(**{**legacy.SETTINGS_DEFAULTS.get(version, {}), **self.meta["settings"]})
-            coders = legacy.CODERS.get(version, legacy.CODERS[3])
+            stored = {**self.format.settings_defaults, **self.meta["settings"]}  # with what older formats meant
+            self.settings = Settings(**stored)
+            coders = self.format.coders
             if not self.settings.lossless and self.settings.coefficient_coder not in coders:
                 raise ArchiveError(f"meta: settings.coefficient_coder: {self.settings.coefficient_coder!r} is not "
-                                   f"one format {version} writes ({', '.join(coders)})", self.path)
-            if version not in legacy.SETTINGS_DEFAULTS and "axes_from_positions" not in self.meta["settings"]:
-                raise ArchiveError(f"meta: settings.axes_from_positions: missing (format {version} stores it)",
-                                   self.path)
+                                   f"one format {self.format_version} writes ({', '.join(coders)})", self.path)
+            if "axes_from_positions" not in stored:
+                raise ArchiveError(f"meta: settings.axes_from_positions: missing (format {self.format_version} "
+                                   "stores it)", self.path)
             try:
                 self.stages = self.settings.stages()  # the chain the settings name, from the registry
             except ValueError as exc:
@@ -102,8 +101,8 @@ class Archive:
         except BaseException:
             self._reader.close()
             raise
-        self._decode_class = legacy.CLASS_DECODERS.get(version, ClassBasis.decode)
-        self._decode_clip = legacy.CLIP_DECODERS.get(version, self._coded_clip)
+        self._decode_class = old_streams.CLASS_DECODERS.get(self.format.class_stream, ClassBasis.decode)
+        self._decode_clip = old_streams.CLIP_DECODERS.get(self.format.clip_stream, self._coded_clip)
         self._built: dict[tuple, tuple] = {}  # (method, its arguments) -> (value, ArchiveError): `_built_once`
         self._building = threading.RLock()
 
@@ -120,8 +119,8 @@ class Archive:
             raise ArchiveError(f"{name}: stream missing", self.path) from None
 
     def _unpacked(self, name: str) -> bytes:
-        """Stream `meta` (or `skeletons` of formats 1 to 9) unzstd'd: with its dictionary from format 7 on."""
-        used = dictionary(STREAM_DICTIONARIES[name]) if self.format_version >= 7 else None
+        """Stream `meta` (or an old format's `skeletons`) unzstd'd, with its dictionary where the format has one."""
+        used = dictionary(STREAM_DICTIONARIES[name]) if self.format.stream_dictionaries else None
         data = self._stream(name)
         try:
             return decode_bytes(data, dictionary=used)
@@ -141,25 +140,18 @@ class Archive:
     def _skeletons(self) -> list[str]:
         """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
         count = len(self.meta["skeletons"])
-        if self.format_version >= 10:  # templates and numbers (archive/skeletons.py)
-            is_asf = [stored_format(entry).asf_skeletons for entry in self.meta["skeletons"]]
+        if self.format.skeletons != 10:  # an old format's layout (formats 1 to 9)
             try:
-                texts = [blob.decode("latin-1") for blob in
-                         decode_skeletons(self._stream("skeletons"), is_asf, MAX_DECODED_STREAM_BYTES)]
-            except ValueError as exc:
+                return old_streams.skeleton_texts(self._unpacked("skeletons"), self.format.skeletons, count)
+            except (ValueError, RecursionError) as exc:  # also bad JSON, and JSON nested too deep
                 raise ArchiveError(f"skeletons: {exc}", self.path) from exc
-            valid = len(texts) == count
-        elif self.format_version >= 7:  # packed bytes: every byte is a Latin-1 character
-            try:
-                texts = [blob.decode("latin-1") for blob in unpack_blobs(self._unpacked("skeletons"))]
-            except ValueError as exc:
-                raise ArchiveError(f"skeletons: {exc}", self.path) from exc
-            valid = len(texts) == count
-        else:  # a JSON list of str
-            texts = self._json("skeletons")
-            valid = (isinstance(texts, list) and len(texts) == count
-                     and all(isinstance(t, str) and max(t, default="\0") <= "\xff" for t in texts))
-        if not valid:
+        is_asf = [stored_format(entry).asf_skeletons for entry in self.meta["skeletons"]]
+        try:  # templates and numbers (archive/skeletons.py)
+            texts = [blob.decode("latin-1") for blob in
+                     decode_skeletons(self._stream("skeletons"), is_asf, MAX_DECODED_STREAM_BYTES)]
+        except ValueError as exc:
+            raise ArchiveError(f"skeletons: {exc}", self.path) from exc
+        if len(texts) != count:
             raise ArchiveError(f"skeletons: expected {count} ASF texts, as meta lists", self.path)
         return texts
 
@@ -343,6 +335,11 @@ class Archive:
     def format_version(self) -> int:
         return self._reader.format_version
 
+    @property
+    def format(self) -> Format:
+        """What the archive's format does differently from the newest (`mocapzip.legacy.format_of`)."""
+        return self._reader.format
+
     def verify_checksums(self) -> None:
         """Check every stream's CRC32 without decoding: cheap, so `info` and `decompress` run it first."""
         paths = {f"{kind}/{i:05d}": row["path"] for i, row in enumerate(self.clips)
@@ -361,7 +358,7 @@ class Archive:
         (`mcz test`): an archive that passes decompresses, disk space and permissions aside. Also
         checks that the index's clips table (format 10 on, where written) says what meta says."""
         self.verify_checksums()
-        if self._reader.contents not in (None, contents_of(self.meta, self.format_version)):
+        if self._reader.contents not in (None, contents_of(self.meta, self.format.contents_columns)):
             raise ArchiveError("index: contents (the clips table) does not match meta", self.path)
         entries = list(self.files.values())
         with closing(self.made_files(entries, jobs, keep=False)) as made:

@@ -3,7 +3,7 @@
 Layout (format 3 on; docs/format.md): `u32 M`, `u32 Q`, Q `f32` steps, then one "context"
 matrices stream of the mean's integers (M x 1, units of MEAN_STEP_CM), each basis row's
 reference offset (M x 1) and the basis integers less their reference row's (M x Q).
-Formats 1 and 2 are read by `mocapzip.archive.legacy`.
+Formats 1 and 2's layouts are read by `mocapzip.legacy.streams`.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ stream of the coefficient coder named in the settings ("context" or "primed",
 `mocapzip.codec.entropy.coefficients`): the frames x Q pose coefficients and, for the
 representations with a root track, its frames x `Representation.root_width` coefficients
 (x, y, z, yaw: `representations.base.ROOT_TRACK_WIDTH`). Format 1's layout is read by
-`mocapzip.archive.legacy`.
+`mocapzip.legacy.streams`.
 
 The root track is scaled into the pose's units (cm) before its transform, yaw by a typical
 joint radius, because a yaw error moves a joint by (distance from root) x (angle).

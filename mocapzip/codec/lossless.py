@@ -80,8 +80,10 @@ class DecimalChannelCoder(Stage):
     def decode(self, blob: bytes) -> np.ndarray:
         return decode_channels(blob)
 
-_FORMAT_VERSION = 2
-_KNOWN_VERSIONS = (1, 2)
+# The stream's own layout number, its first value (not the archive's format_version): 2 is
+# written; 1, read only, was written by the first format-1 writers (docs/format.md).
+_LAYOUT = 2
+_KNOWN_LAYOUTS = (1, 2)
 
 # Channel modes (first column of the channel table).
 _CONSTANT = 0  # parameter: the float64 bits of the value
@@ -142,7 +144,7 @@ def encode_channels(values) -> bytes:
     decimal_bits = bits[:, decimal_columns].T
 
     exception_positions = np.flatnonzero(exceptions)
-    meta = np.concatenate([[_FORMAT_VERSION, n_frames, n_channels], table.ravel()])
+    meta = np.concatenate([[_LAYOUT, n_frames, n_channels], table.ravel()])
     sections = [
         zstd.encode_ints(meta),
         _encode_residuals(residuals),
@@ -169,9 +171,9 @@ def decode_channels(blob: bytes) -> np.ndarray:
     if len(sections) < 5:
         raise ValueError(f"expected at least 5 sections, got {len(sections)}")
     meta = _int64s(sections[0], 3 + 4 * MAX_VALUES_PER_FRAME)
-    if meta.ndim != 1 or meta.size < 3 or meta[0] not in _KNOWN_VERSIONS:
+    if meta.ndim != 1 or meta.size < 3 or meta[0] not in _KNOWN_LAYOUTS:
         raise ValueError("not a lossless channel blob of a known version")
-    version = int(meta[0])
+    layout = int(meta[0])
     n_frames = zstd.check_size(int(meta[1]), MAX_FRAMES_PER_CLIP, "frames")
     n_channels = zstd.check_size(int(meta[2]), MAX_VALUES_PER_FRAME, "channels")
     n_values = zstd.check_size(n_frames * n_channels, MAX_VALUES_PER_CLIP, "values")
@@ -190,7 +192,7 @@ def decode_channels(blob: bytes) -> np.ndarray:
 
     first_digit_section = 5
     links = [None] * shape[0]
-    if version == 1:
+    if layout == 1:
         residuals = _int64s(sections[1], n_values)
         if residuals.shape != (shape[0] * shape[1],):
             raise ValueError(f"{residuals.size} residuals, expected {shape[0] * shape[1]}")
@@ -232,7 +234,7 @@ def decode_channels(blob: bytes) -> np.ndarray:
             continue
         if next_section >= len(sections):
             raise ValueError("missing digit section")
-        if version == 1:
+        if layout == 1:
             group_digits = zstd.decode_ints(sections[next_section], count)
         else:
             group_digits = _decode_digits(sections[next_section], n, count)
@@ -268,7 +270,7 @@ def _int64s(blob: bytes, max_values: int) -> np.ndarray:
     return values
 
 
-# ------------------------------------------------------------ residual coding (version 2)
+# ------------------------------------------------------------ residual coding (layout 2)
 
 _ANS = 1  # residuals: ans.encode_residuals (context-modelled bit lengths, rANS)
 _ZSTD = 0  # digits: zstd.encode_ints
@@ -558,7 +560,7 @@ def _integrate(r: np.ndarray, order: int) -> np.ndarray:
     return x
 
 
-# ------------------------------------------------------------ links (format version 2)
+# ------------------------------------------------------------ links (layout 2)
 #
 # A channel may have a link: its residual row (differences of its order) is
 # predicted as a weighted sum of the same differences of earlier channels'

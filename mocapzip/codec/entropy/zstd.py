@@ -3,7 +3,7 @@
 What the range coder and the rANS coder do not code ends here: the byte
 streams (meta, the skeletons' text, priors, warping paths), the lossless
 channel coder's integer sections, format 1's coefficient layouts (decoded
-by `archive.legacy`) and the size estimates of `--classes auto`. Each
+by `legacy.streams`) and the size estimates of `--classes auto`. Each
 integer array becomes bytes as small as zstd can make them.
 
 zstd alone does poorly on raw little-endian integers, so each array is first

@@ -1,18 +1,7 @@
-"""Old archive formats, decode only, in one place (as zstd keeps `lib/legacy`).
-
-The reader (`mocapzip.archive.reader`) dispatches on the container's `format_version`; what
-format 4 and every later format do is decoded by the codec modules (what formats 7 and 10
-changed in the `meta` and `skeletons` streams by the reader's own branches), and only what
-formats 1 to 3 did differently lives here. Nothing here encodes: no path can write an old layout.
-
-| format_version | differs from format 4 in |
-|---|---|
-| 1 | settings name no `coefficient_coder` (its streams are "zstd": `ZstdCoder`, `class_v1`, `clip_v1`) nor `axes_from_positions` (false) |
-| 2 | class streams hold mean and basis integers, no reference rows (`class_v2`); coder "context" only; no `axes_from_positions` (false) |
-| 3 | no `axes_from_positions` (false: every bone stores its axis) |
-
-The lossless channel code keeps its own layout number in each stream (1: the first format-1
-writers, before the rANS residual coder; 2: every later writer), read by `mocapzip.codec.lossless`.
+"""Old formats' streams, decode only (which format has which: `legacy.format_of`): format 1's
+coefficient coder (`ZstdCoder`) and clip stream (`clip_v1`), formats 1 and 2's class streams
+(`class_v1`, `class_v2`), and formats 1 to 9's `skeletons` (`skeleton_texts`). Nothing here
+encodes: no path can write an old layout.
 """
 
 from __future__ import annotations
@@ -24,18 +13,10 @@ import numpy as np
 from mocapzip.codec.basis import ClassBasis, read_header, unpack
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.codec.entropy.coefficients import check_matrix_shape, decode_matrices, matrix_shapes
-from mocapzip.codec.entropy.zstd import decode_ints
+from mocapzip.codec.entropy.zstd import decode_ints, unpack_blobs
+from mocapzip.formats.mcz import parse_json
 from mocapzip.limits import MAX_VALUES_PER_CLIP
 from mocapzip.stages import Stage, register
-
-# settings fields an older format did not store, as that format meant them
-SETTINGS_DEFAULTS = {
-    1: {"coefficient_coder": "zstd", "axes_from_positions": False},
-    2: {"axes_from_positions": False},
-    3: {"axes_from_positions": False},
-}
-# the coefficient coders each format wrote (format 4: as format 3)
-CODERS = {1: ("zstd",), 2: ("context",), 3: ("context", "primed")}
 
 
 @register
@@ -102,5 +83,20 @@ def class_v2(blob: bytes) -> ClassBasis:
     return ClassBasis.from_integers(m, mean_ints, ints, steps)
 
 
-CLASS_DECODERS = {1: class_v1, 2: class_v2}  # other formats: ClassBasis.decode
-CLIP_DECODERS = {1: clip_v1}  # other formats: CodedClip.from_payload
+# by `legacy.Format.class_stream` and `clip_stream`; the newest layouts are the codec's
+CLASS_DECODERS = {1: class_v1, 2: class_v2}  # 3: `ClassBasis.decode`
+CLIP_DECODERS = {1: clip_v1}  # 2: `CodedClip.from_payload`
+
+
+def skeleton_texts(unpacked: bytes, layout: int, count: int) -> list[str]:
+    """The `count` ASF texts (Latin-1: one character per byte) of a `skeletons` stream of
+    `legacy.Format.skeletons` layout 1 (formats 1 to 6: a JSON list of str) or 7 (formats 7 to 9:
+    the files' bytes packed, `codec.entropy.zstd.unpack_blobs`), its zstd frame already unpacked."""
+    if layout == 7:
+        texts = [blob.decode("latin-1") for blob in unpack_blobs(unpacked)]
+    else:
+        texts = parse_json(unpacked)
+    if not (isinstance(texts, list) and len(texts) == count
+            and all(isinstance(t, str) and max(t, default="\0") <= "\xff" for t in texts)):
+        raise ValueError(f"expected {count} ASF texts, as meta lists")
+    return texts
