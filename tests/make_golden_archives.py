@@ -2,7 +2,7 @@
 
 Run by hand, only when the archive format changes (a new FORMAT_VERSION): each golden
 file stays in the repository for good, so every future reader is tested against what
-every past writer wrote. The inputs are two short real clips from ../shared/data: 09_01 and
+every past writer wrote. The script writes only the files that are missing. The inputs are two short real clips from ../shared/data: 09_01 and
 09_02 up to version 3; from version 4, 09_01 and 64_01, whose left thumb needs twist flips
 (`positions.TwistChoice`), so the golden file holds some. From version 5 the lossy file bounds
 every joint at 3 cm (`--max-error`), so it holds frame patches; from version 6 it also bounds
@@ -18,9 +18,14 @@ mode: their class is stored as a tensor model (forced: on two clips the model ne
 golden file is there to pin its streams down), and the BVH clip's class, which fills no grid,
 as PCA. From version 12 the files are written with HDF5 1.10's object versions and their clips
 tables list each clip's achieved errors; the inputs and settings are version 11's.
+
+From version 12 it also writes example_v{FORMAT_VERSION}.mcz, the tiny archive docs/format.md shows
+byte by byte ("Worked examples", checked by tests/test_format_examples.py): the first 4 frames of
+09_01, coded as `channels` with the `identity` transform, so that each frame's values are the class
+mean plus its coefficients times the basis.
 """
 
-import sys
+import tempfile
 from pathlib import Path
 
 from mocapzip.archive import Settings, compress
@@ -31,6 +36,26 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 GOLDEN = Path(__file__).parent / "golden"
 INPUTS = [DATA / "cmu" / "09" / "09_01.amc", DATA / "cmu" / "64" / "64_01.amc",
           DATA / "bvh-bandai" / "dataset-1_walk-back_normal_001.bvh"]
+EXAMPLE_FRAMES = 4
+
+
+def example_clip(folder: Path) -> Path:
+    """09_01.amc cut after its first EXAMPLE_FRAMES frames, beside its skeleton, in `folder`."""
+    lines = (DATA / "cmu" / "09" / "09_01.amc").read_bytes().splitlines(keepends=True)
+    end = lines.index(b"%d\n" % (EXAMPLE_FRAMES + 1))
+    (folder / "09_01.amc").write_bytes(b"".join(lines[:end]))
+    (folder / "09.asf").write_bytes((DATA / "cmu" / "09" / "09.asf").read_bytes())
+    return folder
+
+
+def write_once(name: str, inputs, settings: Settings) -> None:
+    path = GOLDEN / f"{name}_v{FORMAT_VERSION}.mcz"
+    if path.exists():
+        print(f"{path} exists: golden files are never regenerated")
+        return
+    summary = compress(inputs, path, settings)
+    print(f"wrote {path}: {summary['output_bytes']} bytes")
+
 
 if __name__ == "__main__":
     # The lossy file uses the newest clip coder even where "auto" would not (two clips are too
@@ -39,8 +64,7 @@ if __name__ == "__main__":
                      coefficient_coder="primed", model="tensor", modes=r"(?P<subject>[0-9]+)_01[.]amc$")
     tensor._pays = lambda tensor_bytes, best_bytes: True
     for name, settings in (("lossy", lossy), ("lossless", Settings(lossless=True))):
-        path = GOLDEN / f"{name}_v{FORMAT_VERSION}.mcz"
-        if path.exists():
-            sys.exit(f"{path} exists: golden files are never regenerated")
-        summary = compress(INPUTS, path, settings)
-        print(f"wrote {path}: {summary['output_bytes']} bytes")
+        write_once(name, INPUTS, settings)
+    with tempfile.TemporaryDirectory() as folder:
+        write_once("example", [example_clip(Path(folder))],
+                   Settings(representation="channels", transform={"id": "identity"}))
