@@ -1,9 +1,10 @@
-"""Which HDF5 libraries read which archive format: the table in docs/format.md ("Versions").
+"""Which HDF5 libraries read which archive format: the table in docs/format_notes.md (§3, "Versions"),
+from which docs/format.md's version table (§3.2) takes its column "HDF5 that reads it".
 
 For each h5py release below (each ships its own HDF5 in its wheel), a throwaway venv reads every
 golden archive (tests/golden: one or more per format, written by that format's writer) with h5py
 alone: the root attributes, the index (attribute or dataset) and the whole payload, as
-docs/format.md's "Reading one stream by hand" does. Debian's python3-h5py (HDF5 1.10.8, built
+docs/format_notes.md's "Reading one stream by hand" does. Debian's python3-h5py (HDF5 1.10.8, built
 against the system's HDF5) and Debian's stock tools (`h5ls -r`, `h5dump -A`) join the table where
 installed (`apt-get install python3-h5py hdf5-tools`). Needs the package registry; never in CI.
 

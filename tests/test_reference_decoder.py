@@ -30,7 +30,9 @@ from mocapzip.formats.mcz import ArchiveReader
 from test_bvh_pipeline import rescaled
 
 GOLDEN = Path(__file__).parent / "golden"
-GOLDEN_FILES = sorted(GOLDEN.glob("lossy_v*.mcz")) + sorted(GOLDEN.glob("lossless_v*.mcz"))
+# and the tiny archive docs/format.md §13 shows byte by byte
+GOLDEN_FILES = sorted(GOLDEN.glob("lossy_v*.mcz")) + sorted(GOLDEN.glob("lossless_v*.mcz")) + \
+    sorted(GOLDEN.glob("example_v*.mcz"))
 # decoded angles are degrees (or radians) and lengths cm or ASF units, all within a few thousand:
 # float rounding differences stay far below this
 FLOAT_ROUNDING = 1e-7

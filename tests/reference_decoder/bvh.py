@@ -1,11 +1,11 @@
 """BVH clips (format 8 on): the hierarchy, its Acclaim-style model, and the file's columns.
 
-Implements docs/format.md, "Decoding a BVH clip (format 8 on)", with the `meta` items it relies
-on ("`meta` JSON": BVH entries of `skeletons`, with `format`, `encoding`, `units` and
-`units_inferred`; rows' `bvh`) and the `extra_root/NNNNN` stream of the streams table. The model
-is handed to `geometry` (sections 1 to 8 of "Decoding a lossy clip") as a `Skeleton` whose axis
+Implements docs/format.md §11, "Decoding a BVH clip (format 8 on)", with the `meta` items it relies
+on (§6.1, `meta` "Fields": BVH entries of `skeletons`, with `format`, `encoding`, `units` and
+`units_inferred`; rows' `bvh`) and the `extra_root/NNNNN` stream (§8.10). The model
+is handed to `geometry` (§10.2 to §10.12, "Decoding a lossy clip") as a `Skeleton` whose axis
 matrices are the identity; this module maps the decoded channel values back to the file's columns
-and writes the file's text ("BVH text").
+and writes the file's text ("BVH text", §12.2).
 """
 
 import math
@@ -15,12 +15,12 @@ import numpy as np
 
 from .geometry import Skeleton
 
-# "`meta` JSON", skeletons: `units` -> cm_per_unit
+# §6.1, skeletons: `units` -> cm_per_unit
 CM_PER_UNIT = {"cm": 1.0, "mm": 0.1, "m": 100.0, "in": 2.54}
 ENCODINGS = ("utf-8", "latin-1")
 # "Decoding a BVH clip": channel names, any case
 CHANNELS = ("xposition", "yposition", "zposition", "xrotation", "yrotation", "zrotation")
-# "`meta` JSON", rows' `bvh.style`
+# §6.1, rows' `bvh.style`
 NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17", "f3", "f4", "f5", "f6", "f7", "f8", "f9")
 LINE_ENDS = ("\n", "\r\n", "\r")
 # rows' `bvh.motion`: MOTION, Frames: <frames>, Frame Time: <seconds>; blanks and tabs around the
@@ -245,7 +245,7 @@ class Model:
 
 
 def check_row(row, layout, lossless):
-    """Rows' `bvh` ("`meta` JSON"): motion, style and extra_root; and the row's `header`,
+    """Rows' `bvh` (§6.1, §6.3): motion, style and extra_root; and the row's `header`,
     `first_frame`, `angle_unit`, and `bones` and `counts` (= `layout`) as a BVH row has them."""
     bvh = row["bvh"]
     if not set(bvh) <= {"motion", "style", "extra_root"} or not {"motion", "style"} <= set(bvh):

@@ -1,7 +1,7 @@
 """The .mcz container: an HDF5 file holding named, CRC-checked byte streams.
 
-Implements docs/format.md, sections "Layout", "The index", "Checksums" and "Versions",
-plus the zstd-frame rules of the streams spec ("zstd frames") and its "Dictionaries". A
+Implements docs/format.md, sections "Layout", "The index", "Checksums" (§2) and "Versions" (§3),
+plus the zstd-frame rules ("zstd frames", §1.8) and the "Dictionaries" (§4). A
 trusted-input reader: it checks the magic, the index CRC (formats 1 to 6: also the header CRC),
 that the lengths fill the payload, and every stream's CRC, and raises ValueError on any mismatch.
 """
@@ -36,8 +36,8 @@ def dictionary(name: str) -> bytes:
 
 
 class Reader:
-    """A cursor over bytes: little-endian fixed-width fields and LEB128 varints (both specs'
-    "Conventions"/"Building blocks"); `what` names the stream in errors."""
+    """A cursor over bytes: little-endian fixed-width fields and LEB128 varints (docs/format.md §1,
+    "Conventions and building blocks"); `what` names the stream in errors."""
 
     def __init__(self, data: bytes, what: str = "stream"):
         self.data = data

@@ -1,9 +1,11 @@
 """Lossy clips: from dequantised coefficients to AMC channel values.
 
-Implements docs/format.md, "Decoding a lossy clip: from coefficients to AMC values" (cited as §N
-below): inverse temporal transforms (§1), root track scaling and PCA reconstruction (§2),
-segmented takes (§3), pose weights (§4), the ASF skeleton (§5), marker decoding (§6), the five
-representations' inverses (§7), inverse kinematics (§8) and the output checks (§9, §10).
+Implements docs/format.md §10, "Decoding a lossy clip: from coefficients to AMC values" (its
+sections cited as §10.N below): inverse temporal transforms (§10.2), root track scaling and PCA
+reconstruction (§10.3), tensor classes (§10.4), segmented takes (§10.5), pose weights (§10.6), the
+ASF skeleton (§10.7), marker decoding (§10.8), the five representations' inverses (§10.9),
+inverse kinematics (§10.10), the foot lock (§10.11), frame patches (§10.12) and the output checks
+(§10.13, §10.14).
 
 Everything is float64. Per-frame quantities are numpy arrays with frames on axis 0; a rotation
 per frame is an (F, 3, 3) array. Row vectors throughout: a point p is rotated as p @ R.
@@ -13,7 +15,7 @@ import re
 
 import numpy as np
 
-# §5, `:units length` given as a unit's name: cm per file unit
+# §10.7, `:units length` given as a unit's name: cm per file unit
 NAMED_LENGTHS = {**dict.fromkeys(("m", "meter", "meters", "metre", "metres"), 100.0),
                  **dict.fromkeys(("cm", "centimeter", "centimeters", "centimetre", "centimetres"), 1.0),
                  **dict.fromkeys(("mm", "millimeter", "millimeters", "millimetre", "millimetres"), 0.1),
@@ -27,7 +29,7 @@ YAW_RADIUS_CM = 50.0
 UNIVERSAL_HEIGHT_CM = 158.9588
 HEIGHT_BONES = ("lhipjoint", "lfemur", "ltibia", "lowerback", "upperback", "thorax",
                 "lowerneck", "upperneck", "head")
-UNIVERSAL_LENGTH_CM = {  # §7, CMU subject 07
+UNIVERSAL_LENGTH_CM = {  # §10.9, CMU subject 07
     "lhipjoint": 15.1375, "rhipjoint": 14.4792, "lowerback": 12.6439,
     "lfemur": 39.0856, "rfemur": 40.3851, "upperback": 12.4247,
     "ltibia": 41.7975, "rtibia": 40.2420, "thorax": 12.4919,
@@ -117,10 +119,10 @@ def transpose(m):
     return np.swapaxes(m, -1, -2)
 
 
-# --------------------------------------------------------------------------- §1 transforms
+# --------------------------------------------------------------------------- §10.2 transforms
 
 def inverse_transform(coef, transform):
-    """§1: the inverse temporal transform of every column of an n x K matrix."""
+    """§10.2: the inverse temporal transform of every column of an n x K matrix."""
     kind = transform["id"]
     if kind == "identity":
         return coef.copy()
@@ -142,7 +144,7 @@ def inverse_transform(coef, transform):
 
 
 def inverse_poly(c, spacing):
-    """§1 poly: per segment, its Gram polynomials times its coefficients (listed by degree, then segment)."""
+    """§10.2 poly: per segment, its Gram polynomials times its coefficients (listed by degree, then segment)."""
     n = c.shape[0]
     g = max(1, (n + spacing // 2) // spacing)
     bounds = [s * n // g for s in range(g + 1)]
@@ -161,7 +163,7 @@ def inverse_poly(c, spacing):
 
 
 def gram(size):
-    """§1 poly: column k, the degree-k polynomial orthonormal over t_i = (2i - (L-1)) / (L-1)."""
+    """§10.2 poly: column k, the degree-k polynomial orthonormal over t_i = (2i - (L-1)) / (L-1)."""
     t = np.array([(2 * i - (size - 1)) / (size - 1) for i in range(size)]) if size > 1 else np.zeros(1)
     columns = [np.full(size, 1.0 / np.sqrt(size))]
     for _ in range(1, size):
@@ -174,14 +176,14 @@ def gram(size):
 
 
 def max_level(n, taps):
-    """§1: 0 if n < F - 1, else floor(log2(n // (F - 1))) (pywt.dwt_max_level)."""
+    """§10.2: 0 if n < F - 1, else floor(log2(n // (F - 1))) (pywt.dwt_max_level)."""
     if n < taps - 1:
         return 0
     return (n // (taps - 1)).bit_length() - 1
 
 
 def inverse_dwt(c, level, lo, hi):
-    """§1: [approximation (m//2, level-1) | odd sample (m%2) | details (m//2)], recursively."""
+    """§10.2: [approximation (m//2, level-1) | odd sample (m%2) | details (m//2)], recursively."""
     m = c.shape[0]
     if level == 0 or m < 2:
         return c.copy()
@@ -192,7 +194,7 @@ def inverse_dwt(c, level, lo, hi):
 
 
 def idwt_per(a, d, lo, hi):
-    """§1: periodized one-level synthesis of two length-h inputs into N = 2h samples."""
+    """§10.2: periodized one-level synthesis of two length-h inputs into N = 2h samples."""
     h = a.shape[0]
     n = 2 * h
     taps = len(lo)
@@ -204,10 +206,10 @@ def idwt_per(a, d, lo, hi):
     return x
 
 
-# --------------------------------------------------------------------------- §2, §3
+# --------------------------------------------------------------------------- §10.3, §10.5
 
 def reconstruct(coefficients, transform, stream, class_index, rows, has_root):
-    """§2: one coded stream -> (weighted poses n x M, root track n x 4 or None)."""
+    """§10.3: one coded stream -> (weighted poses n x M, root track n x 4 or None)."""
     mean, basis, pose, root = coefficients(stream, class_index, rows)
     wposes = mean + inverse_transform(pose, transform) @ basis.T  # with Q = 0 the product is zero
     track = None
@@ -219,7 +221,7 @@ def reconstruct(coefficients, transform, stream, class_index, rows, has_root):
 
 
 def crossfade_weight(f, s, count, first, frames, h):
-    """§3: segment s's weight at take frame f (1 inside its own frames, linear over each cut)."""
+    """§10.5: segment s's weight at take frame f (1 inside its own frames, linear over each cut)."""
     if h == 0:  # hard cut
         return 1.0 if first <= f < first + frames else 0.0
     g = 1.0
@@ -231,7 +233,7 @@ def crossfade_weight(f, s, count, first, frames, h):
 
 
 def weighted_take(settings, row, coefficients, has_root, prediction=None):
-    """§2-§3: the take's weighted poses (frames x M) and root track (frames x 4 or None).
+    """§10.3-§10.5: the take's weighted poses (frames x M) and root track (frames x 4 or None).
 
     The unsegmented clip's own stream is requested as stream name None (the row does not know
     its index NNNNN; the orchestration's callback does); segments by their `stream` names.
@@ -240,7 +242,7 @@ def weighted_take(settings, row, coefficients, has_root, prediction=None):
     n = row["frames"]
     if "segments" not in row:
         wposes, track = reconstruct(coefficients, transform, None, row["class"], n, has_root)
-        if "tensor_at" in row:  # §2a (format 11 on): plus the class's tensor model's prediction
+        if "tensor_at" in row:  # §10.4 (format 11 on): plus the class's tensor model's prediction
             wposes = wposes + prediction(row)
         return wposes, track
     if not settings.get("segment", False):
@@ -266,7 +268,7 @@ def weighted_take(settings, row, coefficients, has_root, prediction=None):
     return wposes, track
 
 
-# --------------------------------------------------------------------------- §5 skeleton
+# --------------------------------------------------------------------------- §10.7 skeleton
 
 NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?\Z")
 
@@ -278,7 +280,7 @@ def number(word):
 
 
 def asf_lines(skeleton_text):
-    """§5: bytes (Latin-1 codes), BOM dropped, UTF-8 if valid else Latin-1; stripped, no blanks/comments."""
+    """§10.7: bytes (Latin-1 codes), BOM dropped, UTF-8 if valid else Latin-1; stripped, no blanks/comments."""
     raw = skeleton_text.encode("latin-1")
     if raw.startswith(b"\xef\xbb\xbf"):
         raw = raw[3:]
@@ -293,12 +295,12 @@ def asf_lines(skeleton_text):
 
 
 class Skeleton:
-    """§5: the skeleton model (joints in pre-order from the root, axis matrices, bone vectors, ...)."""
+    """§10.7: the skeleton model (joints in pre-order from the root, axis matrices, bone vectors, ...)."""
 
     def __init__(self, skeleton_text, axes_from_positions):
         units, root, bones, hierarchy = self.parse(skeleton_text)
         self.radians = units.get("angle", "deg").lower().startswith("rad")
-        length = units.get("length", "1").lower()  # §5: a factor, or a unit's name
+        length = units.get("length", "1").lower()  # §10.7: a factor, or a unit's name
         self.cm_per_unit = NAMED_LENGTHS[length] if length in NAMED_LENGTHS else 2.54 / number(length)
         u = 1.0 if self.radians else DEG
 
@@ -349,7 +351,7 @@ class Skeleton:
         return sk
 
     def derive(self, axes_from_positions):
-        """§5, from the joints' names, parents, C, V and channels: rotation axes, lengths, short bones,
+        """§10.7, from the joints' names, parents, C, V and channels: rotation axes, lengths, short bones,
         root proxy, faux matrices, solved bones and height."""
         count = len(self.names)
         self.index = {name: j for j, name in enumerate(self.names)}
@@ -391,7 +393,7 @@ class Skeleton:
 
     @staticmethod
     def parse(skeleton_text):
-        """§5: the sections the decoder uses: :units, :root, :bonedata, :hierarchy."""
+        """§10.7: the sections the decoder uses: :units, :root, :bonedata, :hierarchy."""
         units = {}
         root = {"order": ["tx", "ty", "tz", "rx", "ry", "rz"], "axis": "xyz", "orientation": [0.0, 0.0, 0.0]}
         bones, hierarchy = {}, {}
@@ -443,10 +445,10 @@ class Skeleton:
         return units, root, bones, hierarchy
 
 
-# --------------------------------------------------------------------------- §6 marker decoding
+# --------------------------------------------------------------------------- §10.8 marker decoding
 
 def marker_widths(sk, o):
-    """§6: the pose columns' blocks: (positions, y axes of the stored bones, short x axes, root axes)."""
+    """§10.8: the pose columns' blocks: (positions, y axes of the stored bones, short x axes, root axes)."""
     count = len(sk.names)
     stored = [j for j in range(1, count) if not sk.solved[j]]
     shorts = [j for j in range(1, count) if sk.short[j]]
@@ -454,7 +456,7 @@ def marker_widths(sk, o):
 
 
 def decode_markers(sk, poses, o, flips):
-    """§6: unweighted marker pose P (F x M) -> world rotations R (J, F, 3, 3), positions p (J, F, 3)."""
+    """§10.8: unweighted marker pose P (F x M) -> world rotations R (J, F, 3, 3), positions p (J, F, 3)."""
     count, frames = len(sk.names), poses.shape[0]
     n_pos, stored, shorts, n_root = marker_widths(sk, o)
     width = n_pos + 3 * len(stored) + 3 * len(shorts) + n_root
@@ -490,7 +492,7 @@ def decode_markers(sk, poses, o, flips):
 
 
 def solve(sk, j, bone, r_parent, flip_ranges):
-    """§6 solve(j): the rotation M (F, 3, 3) in j's axis frame that points bone j along `bone`."""
+    """§10.8 solve(j): the rotation M (F, 3, 3) in j's axis frame that points bone j along `bone`."""
     frames = bone.shape[0]
     c = sk.C[j]
     u = sk.V[j] @ c.T
@@ -534,10 +536,10 @@ def solve(sk, j, bone, r_parent, flip_ranges):
     return rot(a1, s_pick) @ rot(a2, r_pick)
 
 
-# --------------------------------------------------------------------------- §7 representations
+# --------------------------------------------------------------------------- §10.9 representations
 
 def rotations_and_root(sk, representation, poses, track, flips):
-    """§7: unweighted poses (+ root track) -> world rotations R (J, F, 3, 3), root position T0 (F, 3) cm."""
+    """§10.9: unweighted poses (+ root track) -> world rotations R (J, F, 3, 3), root position T0 (F, 3) cm."""
     count = len(sk.names)
     if representation == "positions":
         R, p = decode_markers(sk, poses, 0, flips)
@@ -557,7 +559,7 @@ def rotations_and_root(sk, representation, poses, track, flips):
 
 
 def normalised_positions(sk, columns):
-    """§7 normalised: rebuild p_1..p_{J-1} with the clip's own bone lengths."""
+    """§10.9 normalised: rebuild p_1..p_{J-1} with the clip's own bone lengths."""
     count, frames = len(sk.names), columns.shape[0]
     p = np.zeros((count, frames, 3))
     for j in range(1, count):
@@ -573,10 +575,10 @@ def normalised_positions(sk, columns):
     return np.concatenate([rebuilt[j] for j in range(1, count)], axis=1) if count > 1 else columns
 
 
-# --------------------------------------------------------------------------- §8 inverse kinematics
+# --------------------------------------------------------------------------- §10.10 inverse kinematics
 
 def three_axis_solution(m, axes):
-    """§8, 3 axes: one exact (first, middle, last) per frame, before continuity."""
+    """§10.10, 3 axes: one exact (first, middle, last) per frame, before continuity."""
     a, b, c = (AXIS[letter] for letter in axes)
     sgn = 1.0 if (b - a) % 3 == 1 else -1.0
     cm = np.hypot(m[:, b, c], m[:, c, c])
@@ -596,7 +598,7 @@ def three_axis_solution(m, axes):
 
 
 def euler_angles(m, axes):
-    """§8 euler_angles(M, axes): (F, len(axes)) radians, unwrapped along frames."""
+    """§10.10 euler_angles(M, axes): (F, len(axes)) radians, unwrapped along frames."""
     frames = m.shape[0]
     if len(axes) == 0:
         return np.zeros((frames, 0))
@@ -632,7 +634,7 @@ def euler_angles(m, axes):
 
 
 def channels_from_rotations(sk, row, R, root_position):
-    """§8: world rotations + root position -> the row's AMC columns."""
+    """§10.10: world rotations + root position -> the row's AMC columns."""
     frames = R.shape[1]
     to_unit = 1.0 / DEG if row["angle_unit"] == "deg" else 1.0
     out = np.zeros((frames, sum(row["counts"])))
@@ -664,7 +666,7 @@ def channels_from_rotations(sk, row, R, root_position):
 # --------------------------------------------------------------------------- the whole clip
 
 def pose_weights(sk, representation, width, axis_weight_cm):
-    """§4: w, per pose column."""
+    """§10.6: w, per pose column."""
     count = len(sk.names)
     w = np.ones(width)
     if representation == "positions":
@@ -675,9 +677,9 @@ def pose_weights(sk, representation, width, axis_weight_cm):
 
 
 def lossy_channels(settings, format_version, row, skeleton, coefficients, prediction=None):
-    """The clip's decoded AMC values, frames x sum(counts) float64 (pipeline steps 1-6, §1-§10).
+    """The clip's decoded AMC values, frames x sum(counts) float64 (pipeline steps 1-6, §10.2-§10.14).
 
-    skeleton(axes_from_positions) -> the clip's Skeleton (§5: an ASF's; or a BVH hierarchy's model).
+    skeleton(axes_from_positions) -> the clip's Skeleton (§10.7: an ASF's; or a BVH hierarchy's model).
 
     coefficients(stream_name, class_index, rows) -> (mean, basis, pose, root) gives a stream's
     dequantised class basis and coefficients; stream_name is None for an unsegmented clip's own
@@ -689,7 +691,7 @@ def lossy_channels(settings, format_version, row, skeleton, coefficients, predic
             raise ValueError("settings.axes_from_positions missing (format 4 stores it)")
         axes_from_positions = bool(settings["axes_from_positions"])
     else:
-        axes_from_positions = False  # §10
+        axes_from_positions = False  # §10.14
     has_root = representation in ROOT_TRACK_REPRESENTATIONS
     if "tensor_at" in row and (format_version < 11 or "segments" in row):
         raise ValueError("tensor_at: format 11 on, in a row without segments")
@@ -705,7 +707,7 @@ def lossy_channels(settings, format_version, row, skeleton, coefficients, predic
     elif representation in MARKER_REPRESENTATIONS:
         sk = skeleton(axes_from_positions)
         poses = wposes / pose_weights(sk, representation, wposes.shape[1], settings["axis_weight_cm"])
-        flips = row.get("twist_flips", {})  # only 2-axis solved bones use them (§6)
+        flips = row.get("twist_flips", {})  # only 2-axis solved bones use them (§10.8)
         for name in flips:
             if name not in sk.index:
                 raise ValueError(f"twist_flips names {name!r}, not a joint of the skeleton")
@@ -714,7 +716,7 @@ def lossy_channels(settings, format_version, row, skeleton, coefficients, predic
     else:
         raise ValueError(f"unknown representation {representation!r}")
 
-    if values.shape != (frames, width):  # §9
+    if values.shape != (frames, width):  # §10.13
         raise ValueError(f"decoded shape {values.shape}, expected {(frames, width)}")
     if not np.all(np.isfinite(values)) or np.any(np.abs(values) > 1e9):
         raise ValueError("decoded values not finite or beyond 1e9")
@@ -722,7 +724,7 @@ def lossy_channels(settings, format_version, row, skeleton, coefficients, predic
 
 
 def add_patches(values, patches, row, sk):
-    """§8a: the frame patches added to the decoded values, in place (sk: the clip's Skeleton)."""
+    """§10.12: the frame patches added to the decoded values, in place (sk: the clip's Skeleton)."""
     step_cm, frames = patches
     to_unit = 180.0 / PI if row["angle_unit"] == "deg" else 1.0
     base = []
@@ -734,19 +736,19 @@ def add_patches(values, patches, row, sk):
         values[frame] = values[frame] + ints.astype(np.float64) * (base * (step_cm * 2.0 ** -level))
 
 
-# --------------------------------------------------------------------------- §8b foot lock (format 9)
+# --------------------------------------------------------------------------- §10.11 foot lock (format 9)
 
 FOOT = re.compile(r"toe|foot", re.IGNORECASE)
 LOCK_RAMP, LOCK_ROUNDS, LOCK_DAMPING = 8, 3, 4.0
 
 
 def foot_joints(sk):
-    """§8b: the joints named like a toe or a foot, in joint order."""
+    """§10.11: the joints named like a toe or a foot, in joint order."""
     return [j for j, name in enumerate(sk.names) if FOOT.search(name)]
 
 
 def forward(sk, row, values):
-    """Joint positions (F, J, 3) cm of AMC values laid out as the row says (§8b)."""
+    """Joint positions (F, J, 3) cm of AMC values laid out as the row says (§10.11)."""
     return forward_with_rotations(sk, row, values)[0]
 
 
@@ -777,7 +779,7 @@ def forward_with_rotations(sk, row, values):
 
 
 def hold_planted_feet(values, stances, row, sk):
-    """§8b: each stance's foot joint held at its mean decoded position, in place."""
+    """§10.11: each stance's foot joint held at its mean decoded position, in place."""
     feet, count = foot_joints(sk), values.shape[0]
     to_rad = 1.0 if row["angle_unit"] == "rad" else DEG
     column, col = {}, 0
@@ -823,7 +825,7 @@ def hold_planted_feet(values, stances, row, sk):
         joints = [feet[f] for f in leg_feet]
 
         def jacobian(v, p, rotations, active):
-            """§8b: d position of foot / d angle (rad) = w x (position - parent's position)."""
+            """§10.11: d position of foot / d angle (rad) = w x (position - parent's position)."""
             jac = np.zeros((len(joints), 3, len(dofs)))
             for c, (j, i) in enumerate(dof_channels):
                 turn = np.eye(3)  # the rotations after channel i, then C_j R_p
@@ -840,7 +842,7 @@ def hold_planted_feet(values, stances, row, sk):
             return jac.reshape(3 * len(joints), len(dofs))
 
         def solve(frame_values, target, active, first_angles):
-            """§8b: ROUNDS rounds of damped Gauss-Newton, in place."""
+            """§10.11: ROUNDS rounds of damped Gauss-Newton, in place."""
             for _ in range(LOCK_ROUNDS):
                 reached, rotations = forward_with_rotations(sk, row, frame_values)
                 residual = np.where(active[:, None], target - reached[0, joints], 0.0).ravel()
@@ -848,7 +850,7 @@ def hold_planted_feet(values, stances, row, sk):
                 gradient = jac.T @ residual - LOCK_DAMPING * (frame_values[0, dofs] - first_angles) * to_rad
                 try:
                     step = np.linalg.solve(jac.T @ jac + LOCK_DAMPING * np.eye(len(dofs)), gradient)
-                except np.linalg.LinAlgError:  # §8b: no solution; the clip has no finite values
+                except np.linalg.LinAlgError:  # §10.11: no solution; the clip has no finite values
                     step = np.full(len(dofs), np.nan)
                 frame_values[0, dofs] = frame_values[0, dofs] + step / to_rad
 

@@ -1,11 +1,12 @@
 """Lossless clip streams (`clip/NNNNN` when `settings.lossless` is true).
 
-Implements docs/format.md, "Lossless clip streams": the stream is a blob list of
+Implements docs/format.md §9, "Lossless clip streams": the stream is a blob list of
 sections (header, residuals, exceptions, negative zeros, links, digits) from which the
 clip's AMC values are rebuilt as float64, bit for bit. Section names below are those of
-that chapter ("Building blocks", "Stream", "Residuals, layout 2", "Links", "Coarse
-values", "Exceptions", "Negative zeros", "Digit sections", "Values", "Limits a reader
-checks"). The layout is the same in every container format_version (1 to 6).
+that chapter ("Stream", "Residuals, layout 2", "Links", "Coarse values", "Exceptions",
+"Negative zeros", "Digit sections", "Values", "Limits a reader checks"), with the building
+blocks of §1 ("Conventions and building blocks"). The layout is the same in every container
+format_version.
 
 A reference decoder for trusted test files: it checks the CRCs, the exact lengths and the
 limits the spec lists, and raises ValueError when one fails.
@@ -43,7 +44,7 @@ MAX_BUCKETS_PER_WORD = 11351
 
 
 # --------------------------------------------------------------------------------------
-# Building blocks
+# Building blocks (§1)
 # --------------------------------------------------------------------------------------
 
 def blob_list(data: bytes, what: str) -> list:

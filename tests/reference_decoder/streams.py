@@ -1,7 +1,8 @@
 """The lossy codec streams: `class/NNNN`, `clip/NNNNN[/SSS]` and `priors`.
 
-Implements the streams spec, "Lossy codec streams: byte level" (section names below are
-its headings). Format 1 stores integer matrices as zstd "ints" blobs; formats 2-4 as
+Implements docs/format.md §8, "Lossy codec streams" (section names below are its headings),
+with the "Range decoder" (§1.10) and "Integer arrays (`ints`)" (§1.11) it uses. Format 1 stores
+integer matrices as zstd "ints" blobs; formats 2-4 as
 "matrices streams" of an LZMA-style binary range coder. Every function raises ValueError
 on a stream that breaks a *must* rule it checks, in particular on a matrices stream that
 does not end exactly where the end-of-stream rule says.
@@ -218,7 +219,7 @@ def _plane_block(reader: Reader, n: int) -> list:
 
 
 def decode_ints(blob: bytes, max_values: int) -> np.ndarray:
-    """"Integer-array blobs": zstd_frame(body) [verbatim] -> array of the stored shape.
+    """"Integer arrays (`ints`)": zstd_frame(body) [verbatim] -> array of the stored shape.
 
     `max_values` is N, the number of values the matrix should hold (size checks).
     """
