@@ -1,6 +1,7 @@
-"""The archive: settings (`settings`), the encoder (`writer`), the reader (`reader`), old
-formats' decoders (`legacy`), the checks on meta every reader runs (`meta`), the `skeletons`
-stream (`skeletons`) and the zstd dictionaries and skeleton means of the format (`dictionaries/`).
+"""The archive: settings (`settings`), the encoder (`writer`, a recipe of the compress `passes/`),
+the reader (`reader`), old formats' decoders (`legacy`), the checks on meta every reader runs
+(`meta`), the `skeletons` stream (`skeletons`) and the zstd dictionaries and skeleton means of the
+format (`dictionaries/`).
 
     compress(inputs, "db.mcz", Settings(error_cm=1.0))
     with Archive("db.mcz") as archive: archive.decode(0)   # a formats.amc.Motion
