@@ -214,6 +214,44 @@ def test_skip_bad_with_nothing_left_is_an_error(mixed, tmp_path):
     assert os.listdir(out) == []
 
 
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_skip_bad_leaves_out_a_clip_that_no_coding_holds(shared_data, tmp_path, jobs):
+    """Issue 40: a clip refused while its class is coded (TargetError: a real clip whose root stands
+    at x = 1e9, the most a file may hold, decodes a hair past it) stopped the run even with
+    --skip-bad. Now it is left out and listed as a clip that cannot be read is, and nothing of it
+    stays: every stream is the one of the inputs without it, meta too but for `skipped`."""
+    cmu, inputs, without = shared_data / "cmu", tmp_path / "in", tmp_path / "without"
+    for folder in (inputs / "07", without / "07"):
+        folder.mkdir(parents=True)
+        for name in ("07.asf", "07_02.amc"):
+            shutil.copy(cmu / "07" / name, folder)
+    (inputs / "09").mkdir()
+    shutil.copy(cmu / "09" / "09.asf", inputs / "09")
+    lines = (cmu / "09" / "09_01.amc").read_text().splitlines()
+    for k in [k for k, line in enumerate(lines) if line.startswith("root ")]:
+        lines[k] = " ".join(["root", "1000000000", *lines[k].split()[2:]])
+    (inputs / "09" / "09_01.amc").write_text("\n".join(lines) + "\n")
+    archive, alone = tmp_path / "db.mcz", tmp_path / "alone.mcz"
+
+    result = run("compress", inputs, "-o", archive, "-c", "subject", "--skip-bad", "--json", "-j", jobs)
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    [entry] = summary["skipped"]
+    assert entry["path"] == "09/09_01.amc" and "its decoded values would pass" in entry["error"]
+    assert result.stderr.splitlines() == [f"mcz: warning: skipped 09/09_01.amc: {entry['error']}"]
+    assert summary["clips"] == 1
+
+    assert run("compress", without, "-o", alone, "-c", "subject", "-j", jobs, "-q").exit_code == 0
+    with mcz_module.ArchiveReader(archive) as left_out, mcz_module.ArchiveReader(alone) as never_there:
+        assert left_out.names() == never_there.names()
+        for name in left_out.names():
+            assert name == "meta" or left_out.read(name) == never_there.read(name), name
+    with Archive(archive) as left_out, Archive(alone) as never_there:
+        meta = dict(left_out.meta)
+        assert meta.pop("skipped") == summary["skipped"]
+        assert meta == never_there.meta
+
+
 def test_without_skip_bad_the_first_bad_clip_stops_the_run(mixed, tmp_path):
     root, cases, good = mixed
     out = tmp_path / "out"

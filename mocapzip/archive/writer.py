@@ -25,12 +25,13 @@ from mocapzip.archive.passes.check import check
 from mocapzip.archive.passes.class_coding import code_classes
 from mocapzip.archive.passes.classes import classes_of
 from mocapzip.archive.passes.entropy_pass import entropy_pass
-from mocapzip.archive.passes.first_pass import first_pass
+from mocapzip.archive.passes.first_pass import first_pass, leave_out
 from mocapzip.archive.passes.write import summary, write
 from mocapzip.archive.settings import Settings
 from mocapzip.defaults import DEFAULT_CACHE_MB
 from mocapzip.formats.mcz import ArchiveWriter
 from mocapzip.parallel import one_blas_thread
+from mocapzip.ratecontrol.max_error import TargetError
 
 
 @one_blas_thread
@@ -39,8 +40,11 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     """Compress every clip under `inputs` into `output`; return the summary (also stored in meta).
     `units`: of BVH files' lengths (a `UNITS_CM` name), where they cannot be inferred.
 
-    With `skip_bad`, clips that cannot be read are left out and listed in the summary's
-    `skipped` (and the archive's meta) instead of stopping the run.
+    With `skip_bad`, clips that cannot be read, or that no coding brings within the target or
+    bounds (`TargetError`), are left out and listed in the summary's `skipped` (and the archive's
+    meta) instead of stopping the run. A clip refused while its class is coded is left out of
+    what the first pass read, and the classes are made and coded again without it, so that
+    nothing of it stays in the archive (`first_pass.leave_out`).
 
     Clips stream through, so a database larger than memory compresses (docs/architecture.md):
     the first pass reads each clip to check it, note its row and code it (lossless) or add its
@@ -54,8 +58,13 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     reader = job.clip_reader(cache_bytes)
     with ArchiveWriter(job.output, tool_version=__version__, overwrite=force) as archive:
         clips = first_pass(job, reader, archive, jobs)
-        classes = classes_of(clips, reader, job.settings, jobs)
-        coded = code_classes(clips, classes, reader, job.settings, jobs)
+        while True:
+            classes = classes_of(clips, reader, job.settings, jobs)
+            try:
+                coded = code_classes(clips, classes, reader, job.settings, jobs)
+                break
+            except TargetError as refused:
+                clips = leave_out(clips, refused, job, reader)
         stored = entropy_pass(coded, job.settings, jobs)
         written = write(job, clips, classes, coded, stored, archive)
     return summary(job, clips, written, time.perf_counter() - started)

@@ -35,6 +35,7 @@ from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX
 from mocapzip.motion.bvh_skeleton import BvhSkeleton
 from mocapzip.parallel import imap, on_a_cluster
 from mocapzip.progress import progress
+from mocapzip.ratecontrol.max_error import TargetError
 
 CLIPS_AHEAD = 2  # clips read ahead of the one taken in, per worker: each may be tens of MB
 
@@ -66,7 +67,7 @@ class ClipsRead:
     extra_roots: tuple[bytes | None, ...]  # each lossy BVH clip's extra root, kept exactly (its `extra_root/NNNNN`)
     skeletons: tuple[StoredSkeleton, ...]  # those of the clips kept, by path
     skeleton_of: tuple[int, ...]  # each clip's skeleton, by its place in `skeletons`
-    skipped: tuple[dict, ...]  # clips that could not be read, with skip_bad: {"path", "error"} each
+    skipped: tuple[dict, ...]  # with skip_bad, what was left out, the job's first: {"path", "error"} each
 
 
 def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int = 1) -> ClipsRead:
@@ -81,7 +82,7 @@ def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int =
     else:  # lossless clips share no basis: there is nothing to group
         name_class = (lambda source: "all") if settings.lossless else None
     sources, rows, path_classes, pose_widths, extra_roots, poses, glitches = [], [], [], [], [], {}, Counter()
-    skipped = [] if job.skip_bad else None
+    skipped = list(job.skipped) if job.skip_bad else None
     _SHARED.update(reader=reader, settings=settings, accumulate=accumulate)  # the workers fork from here
     taken_there = on_a_cluster() and (accumulate or settings.lossless)
     try:
@@ -129,11 +130,51 @@ def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int =
         _SHARED.clear()
     _report_glitches(glitches, settings.repair_glitches)
     if not sources:
-        raise MocapFormatError(f"nothing to compress: all {len(job.skipped) + len(skipped)} inputs were skipped",
-                               ", ".join(map(os.fspath, job.inputs)))
+        raise _nothing_left(job, skipped)
     skeletons, skeleton_of = _skeletons_of(sources, reader)
     return ClipsRead(tuple(sources), tuple(rows), tuple(path_classes), poses, tuple(pose_widths), tuple(extra_roots),
                      skeletons, skeleton_of, tuple(skipped or ()))
+
+
+def leave_out(clips: ClipsRead, refused: TargetError, job: Job, reader: ClipReader) -> ClipsRead:
+    """`clips` as the first pass reads them without the clip that `refused` names (no coding of
+    it meets its target or bound: `ratecontrol.max_error.TargetError`), which is listed in
+    `skipped` instead; `refused` itself if that clip is none of them, or without `job.skip_bad`.
+
+    Its class's weighted poses are summed again from its other clips, read again (quietly) unless
+    kept, in the order the first pass summed them, so what comes next is what a run without that
+    clip in its inputs makes: no class basis, prior, skeleton or stream is left of it."""
+    paths = [os.fspath(source.amc) for source in clips.sources]
+    if not job.skip_bad or refused.path not in paths:
+        raise refused
+    gone = paths.index(refused.path)
+    skipped = list(clips.skipped)
+    record_skip(skipped, clips.sources[gone], refused)
+
+    def kept(items: tuple) -> tuple:
+        return items[:gone] + items[gone + 1:]
+
+    sources = kept(clips.sources)
+    if not sources:
+        raise _nothing_left(job, skipped)
+    poses = dict(clips.poses)
+    if clips.poses:  # summed by the first pass: its class's again, without it
+        name = clips.path_classes[gone]
+        poses[name] = CovarianceAccumulator(clips.pose_widths[gone])
+        for source, other in zip(sources, kept(clips.path_classes)):
+            if other == name:
+                poses[name].merge(_pose_sums(reader.load(source)))
+        if not poses[name].count:
+            del poses[name]
+    skeletons, skeleton_of = _skeletons_of(sources, reader)
+    return replace(clips, sources=sources, rows=kept(clips.rows), path_classes=kept(clips.path_classes), poses=poses,
+                   pose_widths=kept(clips.pose_widths), extra_roots=kept(clips.extra_roots), skeletons=skeletons,
+                   skeleton_of=skeleton_of, skipped=tuple(skipped))
+
+
+def _nothing_left(job: Job, skipped: list) -> MocapFormatError:
+    return MocapFormatError(f"nothing to compress: all {len(skipped)} inputs were skipped",
+                            ", ".join(map(os.fspath, job.inputs)))
 
 
 def _report_glitches(found: Counter, repair: bool) -> None:
@@ -212,11 +253,15 @@ def _take(clip: LoadedClip, stream: bytes | None, settings: Settings, accumulate
     if settings.lossless:
         return _Taken(_clip_row(clip, settings.fps), clip.glitches, 0, None, stream, clip)
     _check_codable(clip)
-    poses = None
-    if accumulate:
-        poses = CovarianceAccumulator(clip.poses.shape[1])
-        poses.add(clip.poses)
+    poses = _pose_sums(clip) if accumulate else None
     return _Taken(_clip_row(clip, settings.fps), clip.glitches, clip.poses.shape[1], poses, stream, clip)
+
+
+def _pose_sums(clip: LoadedClip) -> CovarianceAccumulator:
+    """The clip's weighted poses summed on their own, to be merged into its class's in clip order."""
+    sums = CovarianceAccumulator(clip.poses.shape[1])
+    sums.add(clip.poses)
+    return sums
 
 
 def _read_and_take(source: ClipSource) -> _Taken | MocapFormatError | OSError:

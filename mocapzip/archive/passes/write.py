@@ -46,7 +46,6 @@ def write(job: Job, clips: ClipsRead, classes: Classes, coded: CodedClasses, sto
     """Meta and the skeletons stream, and every stream the passes hold, to `archive`, committed."""
     codings = coded.clips or (None,) * len(clips.rows)  # none in a lossless archive
     rows = tuple(_clip_row(*parts) for parts in zip(clips.rows, clips.skeleton_of, classes.clip_class, codings))
-    skipped = job.skipped + clips.skipped
     meta = {
         "tool": f"mocapzip {__version__}",
         "settings": _stored_settings(replace(job.settings, coefficient_coder=stored.coder)),
@@ -56,8 +55,8 @@ def write(job: Job, clips: ClipsRead, classes: Classes, coded: CodedClasses, sto
     }
     if classes.auto_plans is not None:
         meta["auto_classes"] = classes.auto_plans
-    if skipped:
-        meta["skipped"] = list(skipped)
+    if clips.skipped:
+        meta["skipped"] = list(clips.skipped)
     streams = {f"extra_root/{i:05d}": stream for i, stream in enumerate(clips.extra_roots) if stream is not None}
     for name, stream in {**streams, **coded.streams, **stored.streams}.items():
         archive.add(name, stream)
@@ -73,7 +72,7 @@ def write(job: Job, clips: ClipsRead, classes: Classes, coded: CodedClasses, sto
                                    job.output)
     archive.add("meta", encode_bytes(unpacked["meta"], dictionary(STREAM_DICTIONARIES["meta"])))
     archive.add("skeletons", encode_skeletons(texts, [skeleton.is_asf for skeleton in clips.skeletons]))
-    return Written(rows, skipped, archive.commit(order, contents_of(meta)))
+    return Written(rows, clips.skipped, archive.commit(order, contents_of(meta)))
 
 
 def summary(job: Job, clips: ClipsRead, written: Written, seconds: float) -> dict:
