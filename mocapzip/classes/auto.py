@@ -1,6 +1,6 @@
 """Automatic classes: `mcz compress --classes auto[:K]` groups clips into K PCA subspaces without labels.
 
-Entry point: `auto_classes(units, k, settings) -> ["auto0" | "auto1" | ..., one per unit]`, a unit
+Entry point: `auto_classes(units, k, target) -> ["auto0" | "auto1" | ..., one per unit]`, a unit
 being a whole clip or (`--segment`) one segment of a take.
 
 Two ways of finding K classes, both from per-clip statistics (count, mean, scatter of the
@@ -46,6 +46,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.classes.ppca import DEFAULT_VARIANCE_SHARE, PpcaModel
 from mocapzip.parallel import parallel_map
 from mocapzip.ratecontrol.encode import pca_share
+from mocapzip.ratecontrol.target import CodingTarget
 
 SEARCH_STRIDE = 4  # calibration scores every 4th frame at most (MAX_CALIBRATION_FRAMES caps the count)
 CALIBRATION_Q = (8, 16, 24, 32, 48, 64, 96)  # truncations scored per clip
@@ -283,7 +284,7 @@ class ByteProxy:
     """
 
     poses: list[np.ndarray]
-    settings: object
+    target: CodingTarget
     tolerance: np.ndarray  # (N, shares)
     weights: np.ndarray  # (N, M)
     curves: list[tuple[np.ndarray, np.ndarray]]
@@ -293,15 +294,15 @@ class ByteProxy:
     details: dict = field(default_factory=dict)  # members -> {"share", "components", "basis_bytes", "clip_bytes"}
 
     @classmethod
-    def calibrate(cls, clips, settings, stats: list[ClipStats] | None = None, jobs: int = 1) -> "ByteProxy":
+    def calibrate(cls, clips, target: CodingTarget, stats: list[ClipStats] | None = None, jobs: int = 1) -> "ByteProxy":
         poses = [c.poses for c in clips]
         stats = stats or [ClipStats.of(p) for p in poses]
-        _SHARED.update(clips=clips, pca=_pca(stats), settings=settings)
+        _SHARED.update(clips=clips, pca=_pca(stats), target=target)
         try:
             rows = parallel_map(_calibrate_clip, range(len(clips)), jobs)
         finally:
             _SHARED.clear()
-        return cls(poses, settings, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
+        return cls(poses, target, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
                    [r[2] for r in rows], np.array([r[3] for r in rows]), stats)
 
     def joint_error(self, i: int, weighted_ms: float) -> float:
@@ -316,7 +317,7 @@ class ByteProxy:
 
     def quantisation_allowance(self, i: int, weighted_ms: float) -> float:
         """Weighted mean squared quantisation error per frame clip i may add to this truncation."""
-        target, t = self.settings.error_cm, self.joint_error(i, weighted_ms)
+        target, t = self.target.error_cm, self.joint_error(i, weighted_ms)
         if t >= target:
             return 0.0
         return float(((target**ERROR_POWER - t**ERROR_POWER) ** (1 / ERROR_POWER) / self.gamma[i]) ** 2)
@@ -332,8 +333,8 @@ class ByteProxy:
         return int(sum(self.class_bytes(np.flatnonzero(labels == j)) for j in np.unique(labels)))
 
     def _class_bytes(self, members: tuple[int, ...]) -> int:
-        settings = self.settings
-        transform = get_stage("transform", settings.transform)
+        target = self.target
+        transform = get_stage("transform", target.transform)
         pca = _pca([self.stats[i] for i in members])
         v = pca.components
         m = len(pca.mean)
@@ -343,7 +344,7 @@ class ByteProxy:
             residual.append(_weighted_truncation(self.stats[i], pca.mean, v, gram))
             gains.append(np.diag(gram).copy())
         residual = np.array(residual)  # (members, M + 1) weighted mean squared error per frame
-        shares = _shares(settings)
+        shares = _shares(target)
         qs = []
         for s in range(len(shares)):
             allowed = self.tolerance[list(members), s] ** 2
@@ -352,9 +353,9 @@ class ByteProxy:
         curves = [transform.forward((self.poses[i] - pca.mean) @ v[:, :max(max(qs), 1)]) for i in members]
         best = None
         for share, q in zip(shares, qs):
-            basis = _basis_bytes(pca, q, settings) + CLASS_OVERHEAD_BYTES
+            basis = _basis_bytes(pca, q, target) + CLASS_OVERHEAD_BYTES
             clip_bytes = sum(_clip_bytes(curves[row][:, :q], gains[row][:q],
-                                         self.quantisation_allowance(i, residual[row, q]), settings.dead_zone)
+                                         self.quantisation_allowance(i, residual[row, q]), target.dead_zone)
                              for row, i in enumerate(members))
             if best is None or basis + clip_bytes < best:
                 best = basis + clip_bytes
@@ -366,18 +367,18 @@ class ByteProxy:
 _SHARED: dict = {}  # what forked calibration workers read
 
 
-def _basis_bytes(pca: PcaBasis, q: int, settings) -> int:
+def _basis_bytes(pca: PcaBasis, q: int, target: CodingTarget) -> int:
     """The size of a class basis of q components, built as `ratecontrol.encode.encode_class` builds
     it, its integers in zstd layouts like the clip estimates (fast; the archive's range coder is
     about 7 % smaller): header, steps, and two length-prefixed ints blobs."""
-    steps = ClassBasis.steps_for(pca.variances[:q], settings.error_cm, settings.basis_precision)
+    steps = ClassBasis.steps_for(pca.variances[:q], target.error_cm, target.basis_precision)
     mean_ints, ints = ClassBasis.quantised(pca.mean, pca.components[:, :q], steps).integers()
     return 8 + 4 * q + 8 + len(encode_ints(mean_ints)) + len(encode_ints(ints))
 
 
-def _shares(settings) -> tuple[float, ...]:
+def _shares(target: CodingTarget) -> tuple[float, ...]:
     """The PCA shares of the error budget a class is estimated at: the encoder's one."""
-    return (pca_share(settings),)
+    return (pca_share(target),)
 
 
 def _weighted_truncation(stat: ClipStats, mean: np.ndarray, v: np.ndarray, gram: np.ndarray) -> np.ndarray:
@@ -431,7 +432,7 @@ def _calibrate_clip(index: int):
     from mocapzip.ratecontrol.encode import ROOT_STEP_RATIO
     from mocapzip.ratecontrol.search import largest_step
 
-    clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
+    clip, pca, coding = _SHARED["clips"][index], _SHARED["pca"], _SHARED["target"]
     weights = _column_weights(clip)
     n = len(clip.poses)
     stride = max(SEARCH_STRIDE, -(-n // MAX_CALIBRATION_FRAMES))
@@ -440,8 +441,8 @@ def _calibrate_clip(index: int):
     coef, poses = coef_all[frames], clip.poses[frames]
     root = None if clip.root is None else clip.root[frames]
     m = pca.components.shape[1]
-    target = settings.error_cm
-    targets = np.array(_shares(settings)) * target
+    target = coding.error_cm
+    targets = np.array(_shares(coding)) * target
 
     def weighted_rms(a, b):
         return float(np.sqrt((((a - b) ** 2) * weights).sum(axis=1).mean()))
@@ -471,12 +472,12 @@ def _calibrate_clip(index: int):
     aim = np.log(targets[0])
     q0 = int(round(np.exp(np.interp(aim, lj, np.log(qs)[::-1])))) if aim >= lj[0] else qs[-1]
     q0 = min(max(q0, 1), m)
-    transform = get_stage("transform", settings.transform)
+    transform = get_stage("transform", coding.transform)
     truncated = pca.mean + coef[:, :q0] @ pca.components[:, :q0].T
     t0 = joint_error(truncated, root)
     curves = transform.forward(coef_all[:, :q0])
     root_curves = None if clip.root is None else transform.forward(scale_root(clip.root))
-    dz, cache = settings.dead_zone, {}
+    dz, cache = coding.dead_zone, {}
 
     def error(step):
         quantiser = UniformQuantiser(step, dz)
@@ -566,7 +567,7 @@ class AutoPlan:
     candidates: list[dict]  # {"k", "method", "seed", "bytes"} for every partition tried
 
 
-def plan(clips, k: int | None, settings, *, max_k: int | None = None, seed: int = 0, restarts: int = 3,
+def plan(clips, k: int | None, target: CodingTarget, *, max_k: int | None = None, seed: int = 0, restarts: int = 3,
          methods=METHODS, proxy: ByteProxy | None = None, jobs: int = 1) -> AutoPlan:
     """Partition clips of one pose width into classes; fewest estimated bytes wins.
 
@@ -579,7 +580,7 @@ def plan(clips, k: int | None, settings, *, max_k: int | None = None, seed: int 
     Without "kss" in `methods`, annealing searches every K instead.
     """
     n = len(clips)
-    proxy = proxy or ByteProxy.calibrate(clips, settings, jobs=jobs)
+    proxy = proxy or ByteProxy.calibrate(clips, target, jobs=jobs)
     stats = proxy.stats
     ks = [min(k, n)] if k else list(range(1, min(n, max_k or DEFAULT_MAX_K) + 1))
     search = "kss" if "kss" in methods else "anneal"
@@ -645,7 +646,7 @@ def _canonical(labels) -> np.ndarray:
     return np.array([order[int(v)] for v in labels], int)
 
 
-def auto_classes(clips, k: int | None, settings, *, max_k: int | None = None, seed: int = 0,
+def auto_classes(clips, k: int | None, target: CodingTarget, *, max_k: int | None = None, seed: int = 0,
                  restarts: int = 3, jobs: int = 1, report: dict | None = None) -> list[str]:
     """The automatic class name ("auto0", "auto1", ...) of each clip, in the order of `clips`.
 
@@ -663,7 +664,7 @@ def auto_classes(clips, k: int | None, settings, *, max_k: int | None = None, se
     plans = []
     for width, indices in sorted(by_width.items(), key=lambda kv: kv[1][0]):
         group = [clips[i] for i in indices]
-        result = plan(group, k, settings, max_k=max_k, seed=seed, restarts=restarts, jobs=jobs)
+        result = plan(group, k, target, max_k=max_k, seed=seed, restarts=restarts, jobs=jobs)
         for i, label in zip(indices, result.labels):
             names[i] = f"auto{offset + int(label)}"
         plans.append({"width": width, "clips": len(indices), "k": result.k, "method": result.method,

@@ -17,7 +17,8 @@ from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.segments import OVERLAP, join_decoded
 from mocapzip.inputs.clip import LoadedClip
 from mocapzip.ratecontrol.encode import code_clip
-from mocapzip.ratecontrol.max_error import Achieved, Bounds, TargetError, achieved
+from mocapzip.ratecontrol.max_error import Achieved, TargetError, achieved
+from mocapzip.ratecontrol.target import CodingTarget
 from mocapzip.representations.base import ROOT_TRACK_WIDTH
 
 TIGHTENINGS = 8  # times a take's segments are coded again, tighter, if the joined take misses the target
@@ -49,29 +50,29 @@ class JoinedTake:
 
 
 def joined_take(take: LoadedClip, segments: list[SegmentCoding], segment_clips: list[LoadedClip], transform,
-                settings) -> JoinedTake:
+                target: CodingTarget) -> JoinedTake:
     """The take's segments (`segment_clips`: each one's coded frames as a clip) joined within
-    settings.error_cm, coded again tighter if they missed it; TargetError if they still miss it
+    target.error_cm, coded again tighter if they missed it; TargetError if they still miss it
     after TIGHTENINGS codings."""
-    target, dead_zone = settings.error_cm, settings.dead_zone
+    aim = target.error_cm
     cores = [(segment.first, segment.frames) for segment in segments]
     streams, errors = [segment.stream for segment in segments], [segment.error for segment in segments]
     for _ in range(TIGHTENINGS):
         decoded = [reconstruct(CodedClip.from_payload(stream, INTERIM_CODER,
                                                       [(segment.coded_frames, segment.basis.q),
                                                        (segment.coded_frames, ROOT_TRACK_WIDTH)]),
-                               segment.basis, transform, dead_zone, segment.coded_frames)
+                               segment.basis, transform, target.dead_zone, segment.coded_frames)
                    for stream, segment in zip(streams, segments)]
         check = take.final_check(*join_decoded(decoded, cores, take.motion.n_frames, OVERLAP))
         mean_error = check.error[0]
-        if mean_error <= target:
+        if mean_error <= aim:
             break
-        target *= TIGHTER
-        codings = [code_clip(clip, segment.basis, transform, target, dead_zone, settings.split)
+        aim *= TIGHTER
+        codings = [code_clip(clip, segment.basis, transform, aim, target.dead_zone, target.split)
                    for clip, segment in zip(segment_clips, segments)]
         streams = [coding.coded.payload(INTERIM_CODER) for coding in codings]
         errors = [coding.error for coding in codings]
     else:
-        raise TargetError(f"segments joined to {mean_error:.4f} cm, above {settings.error_cm:g} cm; use a larger -e",
+        raise TargetError(f"segments joined to {mean_error:.4f} cm, above {target.error_cm:g} cm; use a larger -e",
                           take.source.amc)
-    return JoinedTake(tuple(streams), tuple(errors), *achieved(take, check, Bounds.of(settings)), check.twists)
+    return JoinedTake(tuple(streams), tuple(errors), *achieved(take, check, target.bounds), check.twists)

@@ -30,6 +30,7 @@ from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import ClassCoding, encode_class
 from mocapzip.ratecontrol.max_error import Achieved
 from mocapzip.ratecontrol.segments import SegmentCoding, joined_take
+from mocapzip.ratecontrol.target import CodingTarget
 from mocapzip.ratecontrol.tensor import TensorClass, encode_tensor_class
 from mocapzip.stages import get_stage
 
@@ -107,7 +108,7 @@ def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, setting
     """Every class coded (lossy; nothing for a lossless archive, whose clips the first pass coded)."""
     if settings.lossless:
         return CodedClasses((), (), {}, {})
-    transform = get_stage("transform", settings.transform)
+    transform, target = get_stage("transform", settings.transform), settings.coding_target()
     members_of = [classes.members(k) for k in range(len(classes.names))]
     work = [_ClassWork(tuple(classes.units[u] for u in members), classes.poses.get(name),
                        natural_modes([classes.units[u].source.relpath for u in members], settings.modes)
@@ -119,7 +120,7 @@ def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, setting
     try:
         # counted in frames, not classes: one subject is one class, and a bar at 0/1 tells nothing
         with progress(total=sum(w.frames for w in work), desc="code", unit="frame") as bar, kept_workers(jobs), \
-                closing(_class_codings(work, transform, settings, jobs)) as coded:
+                closing(_class_codings(work, transform, target, jobs)) as coded:
             for k, (name, members, class_work, coding) in enumerate(zip(classes.names, members_of, work, coded)):
                 streams[f"class/{k:04d}"] = coding.basis.encode()
                 records.append(_class_record(name, class_work, coding, settings))
@@ -147,7 +148,7 @@ def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, setting
         parts.sort(key=lambda part: part[0])  # by unit: in frame order
         units = [classes.units[u] for u, _, _ in parts]
         joined = joined_take(reader.load(clips.sources[clip]), [segment for _, _, segment in parts],
-                             [unit.load(reader) for unit in units], transform, settings)
+                             [unit.load(reader) for unit in units], transform, target)
         names = [f"clip/{clip:05d}/{s:03d}" for s in range(len(parts))]
         interim.update(zip(names, joined.streams))
         rows[clip] = _clip_record(clip, joined.achieved, joined.patches, None, joined.twists, streams,
@@ -180,14 +181,14 @@ def _clip_record(clip: int, achieved: Achieved, patches: FramePatches | None, st
                       None if stances is None else len(stances), tensor_at, segments)
 
 
-def _class_codings(work: list[_ClassWork], transform, settings: Settings, jobs: int):
+def _class_codings(work: list[_ClassWork], transform, target: CodingTarget, jobs: int):
     """Each class coded (`_coding_of`), in order: here one after the other; on a Dask cluster all
     at once, as tasks (`_class_task`), the largest started first."""
     if not on_a_cluster():
         for class_work in work:
-            yield _coding_of(class_work, transform, settings, jobs)
+            yield _coding_of(class_work, transform, target, jobs)
         return
-    _SHARED.update(work=work, transform=transform, settings=settings)
+    _SHARED.update(work=work, transform=transform, target=target)
     try:
         yield from imap(_class_task, range(len(work)), jobs, priorities=[class_work.frames for class_work in work])
     finally:
@@ -202,18 +203,18 @@ def _class_task(k: int) -> _ClassCoding:
     time: `cluster._task`); its clips, kept by the worker's reader while the class is coded,
     forgotten after."""
     work = _SHARED["work"][k]
-    coding = _coding_of(work, _SHARED["transform"], _SHARED["settings"], 1)
+    coding = _coding_of(work, _SHARED["transform"], _SHARED["target"], 1)
     _CODING["reader"].forget([unit.source for unit in work.units])
     return coding
 
 
-def _coding_of(work: _ClassWork, transform, settings: Settings, jobs: int) -> _ClassCoding:
+def _coding_of(work: _ClassWork, transform, target: CodingTarget, jobs: int) -> _ClassCoding:
     """One class coded: `encode_class`, or `encode_tensor_class` for a class with a grid (coded
     in one process, its clips all loaded)."""
     clips = ClipsOnDemand(list(work.units), _load_unit)
     if work.grid is None:
-        return _ClassCoding(*encode_class(clips, transform, settings, jobs, work.poses), None)
-    return _ClassCoding(*encode_tensor_class(list(clips), list(work.grid.at), transform, settings))
+        return _ClassCoding(*encode_class(clips, transform, target, jobs, work.poses), None)
+    return _ClassCoding(*encode_tensor_class(list(clips), list(work.grid.at), transform, target))
 
 
 _CODING: dict = {}  # the reader of the clips being coded, which the kept workers inherit (`_load_unit`)

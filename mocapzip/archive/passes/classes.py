@@ -67,8 +67,8 @@ def classes_of(clips: ClipsRead, reader: ClipReader, settings: Settings, jobs: i
     if path_classes:  # a take's segments share its class
         unit_names = [path_classes[unit.clip] for unit in units]
     else:
-        unit_names = auto_classes([unit.load(reader) for unit in units], parse_auto(settings.classes), settings,
-                                  jobs=jobs, report=auto_report)
+        unit_names = auto_classes([unit.load(reader) for unit in units], parse_auto(settings.classes),
+                                  settings.coding_target(), jobs=jobs, report=auto_report)
     names = tuple(sorted(set(unit_names)))
     number = {name: k for k, name in enumerate(names)}
     unit_class = tuple(number[name] for name in unit_names)
