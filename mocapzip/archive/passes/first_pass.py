@@ -139,7 +139,7 @@ def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int =
 def leave_out(clips: ClipsRead, refused: TargetError, job: Job, reader: ClipReader) -> ClipsRead:
     """`clips` as the first pass reads them without the clip that `refused` names (no coding of
     it meets its target or bound: `ratecontrol.max_error.TargetError`), which is listed in
-    `skipped` instead; `refused` itself if that clip is none of them, or without `job.skip_bad`.
+    `skipped` instead. Raises `refused` if that clip is none of them, or without `job.skip_bad`.
 
     Its class's weighted poses are summed again from its other clips, read again (quietly) unless
     kept, in the order the first pass summed them, so what comes next is what a run without that
@@ -157,15 +157,14 @@ def leave_out(clips: ClipsRead, refused: TargetError, job: Job, reader: ClipRead
     sources = kept(clips.sources)
     if not sources:
         raise _nothing_left(job, skipped)
-    poses = dict(clips.poses)
-    if clips.poses:  # summed by the first pass: its class's again, without it
-        name = clips.path_classes[gone]
-        poses[name] = CovarianceAccumulator(clips.pose_widths[gone])
-        for source, other in zip(sources, kept(clips.path_classes)):
-            if other == name:
+    poses = clips.poses
+    if poses:  # summed by the first pass: its class's again, without it, the classes in the order their clips come
+        name, path_classes = clips.path_classes[gone], kept(clips.path_classes)
+        poses = {other: poses[other] for other in dict.fromkeys(path_classes)}
+        if name in poses:
+            poses[name] = CovarianceAccumulator(clips.pose_widths[gone])
+            for source in (source for source, other in zip(sources, path_classes) if other == name):
                 poses[name].merge(_pose_sums(reader.load(source)))
-        if not poses[name].count:
-            del poses[name]
     skeletons, skeleton_of = _skeletons_of(sources, reader)
     return replace(clips, sources=sources, rows=kept(clips.rows), path_classes=kept(clips.path_classes), poses=poses,
                    pose_widths=kept(clips.pose_widths), extra_roots=kept(clips.extra_roots), skeletons=skeletons,
