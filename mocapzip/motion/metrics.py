@@ -147,10 +147,17 @@ def shell_errors(model: SkeletonModel, original: Pose, reconstructed: Pose, shel
     the frame in object space; the error of a bone in a frame is the largest distance between a
     vertex in `original` and in `reconstructed`. It sees what joint positions cannot: a twist of
     an end bone about itself moves no joint, but moves the vertices off its axis."""
-    axes, origins = shell_frames(model, original)
-    new_axes, new_origins = shell_frames(model, reconstructed)
+    errors = shell_vertex_errors(*shell_frames(model, original), *shell_frames(model, reconstructed), shell_cm)
+    return ShellError(errors, shell_bones(model).names)
+
+
+def shell_vertex_errors(axes: np.ndarray, origins: np.ndarray, new_axes: np.ndarray, new_origins: np.ndarray,
+                        shell_cm: float = ACL_SHELL_CM) -> np.ndarray:
+    """(F, B) the worst distance of the three shell vertices between two sets of frames (axes
+    (F, B, 3, 3) with rows the local axes, origins (F, B, 3) cm): `shell_errors` on frames that come
+    from elsewhere (a decode of ACL's, read back)."""
     moved = (new_origins - origins)[:, :, None, :] + shell_cm * (new_axes - axes)  # (F, B, 3 vertices, 3)
-    return ShellError(np.linalg.norm(moved, axis=-1).max(axis=-1), shell_bones(model).names)
+    return np.linalg.norm(moved, axis=-1).max(axis=-1)
 
 
 def bytes_per_frame(n_bytes: int, n_frames: int) -> float:
