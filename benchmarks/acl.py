@@ -76,6 +76,7 @@ SETS = {"cmu": DATA / "cmu", "bandai": DATA / "bvh-bandai"}
 RUNS = "1:10,0.1:1,0.01:0.05,0.002:0.01,0.001:0.005"
 ACL_PRECISION_CM = 0.01  # ACL's default precision (`track_desc_transformf::precision`, in cm as Unreal's)
 EXPORT_TOLERANCE_CM = 1e-3  # ACL's kinematics of the float32 export against mcz's (float32: ~1e-5 cm)
+AGREEMENT_CM = 1e-3  # the two metrics' largest difference beyond which the table means nothing
 
 
 class Posed(NamedTuple):
@@ -397,6 +398,8 @@ def main(argv=None) -> None:
           f"is within {max(e.miss for e in exported.values()):.1e} cm of mcz's. ACL's own max error (against its "
           f"pre-processed raw clip): {', '.join(f'{s.own_error:.4f}' for s in scores if s.own_error is not None)} cm.\n")
     print(table(scores, seconds, scores[0]))
+    if max(s.agreement for s in scores) > AGREEMENT_CM:
+        print(f"\n**The two metrics disagree by more than {AGREEMENT_CM:g} cm: these figures mean nothing.**")
 
 
 if __name__ == "__main__":

@@ -7,13 +7,14 @@
 // (`calculate_compression_error` with `qvvf_transform_error_metric`, the metric acl_compressor
 // reports) against RAW as it is (acl_compressor measures against RAW after its pre-processing),
 // the worst track and time. With a compressed OTHER and SAMPLES.f32 it also writes the decoded
-// local transforms there: float32 (samples, tracks, 10) = rotation x y z w, translation, scale.
+// local transforms there as ACL's error sees them (see write_samples): float32 (samples, tracks, 10)
+// = rotation x y z w, translation, scale.
 // acl_compressor itself cannot write a decoded clip, and the benchmark scores every codec's
 // decode with the same Python code.
 
 #include "acl/core/ansi_allocator.h"
 #include "acl/core/floating_point_exceptions.h"
-#include "acl/compression/convert.h"
+#include "acl/core/impl/debug_track_writer.h"
 #include "acl/compression/track_error.h"
 #include "acl/compression/transform_error_metrics.h"
 #include "acl/decompression/decompress.h"
@@ -65,19 +66,34 @@ static bool read_raw_clip(iallocator& allocator, const char* path, track_array_q
 	return true;
 }
 
-static bool write_samples(const track_array_qvvf& tracks, const char* path)
+// Writes what ACL's error measures: every sample decoded as `calculate_compression_error` does (at the
+// raw clip's sample times, interpolated where keyframes were stripped, default sub-tracks the raw
+// clip's bind pose). acl::convert_track_list rounds to the nearest kept keyframe instead.
+static bool write_samples(iallocator& allocator, const track_array_qvvf& raw, const compressed_tracks& compressed, const char* path)
 {
+	scope_disable_fp_exceptions fp_off;
+	decompression_context<debug_transform_decompression_settings> context;
+	context.initialize(compressed);
+	const sample_rounding_policy rounding = compressed.has_database() || compressed.has_stripped_keyframes()
+		? sample_rounding_policy::none : sample_rounding_policy::nearest;
+	acl_impl::debug_track_writer writer(allocator, track_type8::qvvf, raw.get_num_tracks());
+	writer.initialize_with_defaults(raw);
+
 	std::ofstream stream(path, std::ios::binary | std::ios::trunc);
-	for (uint32_t sample = 0; sample < tracks.get_num_samples_per_track(); ++sample)
-		for (uint32_t index = 0; index < tracks.get_num_tracks(); ++index)
+	for (uint32_t sample = 0; sample < raw.get_num_samples_per_track(); ++sample)
+	{
+		context.seek(rtm::scalar_min(float(sample) / raw.get_sample_rate(), raw.get_finite_duration()), rounding);
+		context.decompress_tracks(writer);
+		for (uint32_t index = 0; index < raw.get_num_tracks(); ++index)
 		{
-			const rtm::qvvf& transform = tracks[index][sample];
+			const rtm::qvvf& transform = writer.read_qvv(index);
 			float values[12];
 			rtm::quat_store(transform.rotation, values);
 			rtm::vector_store3(transform.translation, values + 4);
 			rtm::vector_store3(transform.scale, values + 7);
 			stream.write(reinterpret_cast<const char*>(values), 10 * sizeof(float));
 		}
+	}
 	return bool(stream);
 }
 
@@ -126,15 +142,10 @@ int main(int argc, char* argv[])
 			context.initialize(*compressed);
 			error = calculate_compression_error(allocator, raw, context, error_metric);
 		}
-		if (argc == 4)
+		if (argc == 4 && !write_samples(allocator, raw, *compressed, argv[3]))
 		{
-			track_array decoded;
-			if (convert_track_list(allocator, *compressed, decoded).any()
-				|| !write_samples(track_array_cast<track_array_qvvf>(decoded), argv[3]))
-			{
-				std::fprintf(stderr, "%s: cannot decode to %s\n", argv[2], argv[3]);
-				return 1;
-			}
+			std::fprintf(stderr, "%s: cannot write %s\n", argv[2], argv[3]);
+			return 1;
 		}
 	}
 	std::printf("{\"max_error\": %.9g, \"worst_track\": %u, \"worst_time\": %.9g, \"num_tracks\": %u, \"num_samples\": %u}\n",
