@@ -348,6 +348,21 @@ def table(scores: list[Score], seconds_of_motion: float, reference: Score) -> st
     return "\n".join(rows)
 
 
+def at_acl_error(acl: Score, mcz: list[Score]) -> str:
+    """What mcz needs for ACL's worst vertex error: its bytes against ACL's, interpolated (log bytes
+    against log error) between the two mcz settings, next in size, whose worst errors bracket it;
+    or the nearest setting, where none reaches it."""
+    target = max(c.vertex for c in acl.clips)
+    runs = sorted(((s.bytes, max(c.vertex for c in s.clips), s.setting) for s in mcz))
+    for (small, loose, _), (large, tight, _) in zip(runs, runs[1:]):
+        if tight <= target <= loose:
+            share = np.log(loose / target) / np.log(loose / tight) if loose > tight else 1.0
+            return f"{np.exp(np.log(small) + share * np.log(large / small)) / acl.bytes:.2f}× ACL's bytes"
+    size, error, setting = min(runs, key=lambda run: abs(np.log(run[1] / target)))
+    return (f"not reached by these settings; the nearest, `{setting}`, takes {size / acl.bytes:.2f}× ACL's bytes "
+            f"for {error / target:.2f}× its error")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--acl-compressor", type=Path, required=True, help="ACL's tools/acl_compressor, built")
@@ -398,6 +413,10 @@ def main(argv=None) -> None:
           f"is within {max(e.miss for e in exported.values()):.1e} cm of mcz's. ACL's own max error (against its "
           f"pre-processed raw clip): {', '.join(f'{s.own_error:.4f}' for s in scores if s.own_error is not None)} cm.\n")
     print(table(scores, seconds, scores[0]))
+    mcz = [s for s in scores if s.own_error is None]
+    for acl in (s for s in scores if s.own_error is not None):
+        print(f"\nmcz at ACL's worst vertex error with {acl.setting} ({max(c.vertex for c in acl.clips):.4f} cm): "
+              f"{at_acl_error(acl, mcz)}.")
     if max(s.agreement for s in scores) > AGREEMENT_CM:
         print(f"\n**The two metrics disagree by more than {AGREEMENT_CM:g} cm: these figures mean nothing.**")
 
