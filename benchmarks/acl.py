@@ -406,8 +406,7 @@ def main(argv=None) -> None:
             scores.append(score_mcz(args, sources, exported, inputs, work, float(mean_text),
                                     None if max_text == "none" else float(max_text)))
             print(f"mcz {scores[-1].setting}: {scores[-1].bytes:,} bytes", file=sys.stderr, flush=True)
-    print(f"`python benchmarks/acl.py --data {args.data} --clips {args.clips}"
-          f"{f' --fps {args.fps:g}' if args.fps else ''}`: {len(sources)} clips, {frames:,} frames, "
+    print(f"`python benchmarks/acl.py {' '.join(sys.argv[1:] if argv is None else argv)}`: {len(sources)} clips, {frames:,} frames, "
           f"{seconds:.1f} s of motion at {sources[next(iter(sources))].fps:g} fps; {os.cpu_count()} CPUs, "
           f"load average {load:.1f} at start, {os.getloadavg()[0]:.1f} at end. ACL's kinematics of the export "
           f"is within {max(e.miss for e in exported.values()):.1e} cm of mcz's. ACL's own max error (against its "
