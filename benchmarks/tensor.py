@@ -167,15 +167,16 @@ def codec_report(data: Path, errors: list[float], jobs: int) -> None:
     import csv
     import tempfile
 
-    from mocapzip.archive import Settings, compress, writer
+    from mocapzip.archive import Settings, compress
+    from mocapzip.archive.passes import class_coding
 
     tried: dict[str, list] = {}
 
-    def recording(clips, at, transform, settings):
-        trials = tried.setdefault(f"{len(clips)} clips, {clips[0].source.relpath}, {settings.error_cm:g} cm", [])
-        return encode_tensor_class(clips, at, transform, settings, trials)
+    def recording(clips, at, transform, target):
+        trials = tried.setdefault(f"{len(clips)} clips, {clips[0].source.relpath}, {target.error_cm:g} cm", [])
+        return encode_tensor_class(clips, at, transform, target, trials)
 
-    writer.encode_tensor_class = recording
+    class_coding.encode_tensor_class = recording
     print("| set | clips | frames | -e (cm) | default classes | natural classes | --model tensor | classes as tensors |\n"
           "|---|---:|---:|---:|---:|---:|---:|---:|")
     with tempfile.TemporaryDirectory() as tmp:

@@ -253,9 +253,10 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     `contact_error`: the bound on planted foot joints. `lossless`: every AMC value back exactly
     (then no error or bound may be given). `asf`: the skeleton of AMC files that have none beside
     them; `units`: of BVH files' lengths ("cm", "mm", "m", "in"; None: inferred from the skeleton's
-    size); `skip_bad`: leave out clips that cannot be read, listed in the summary. `dask`: run the
-    work on a Dask cluster instead of `jobs` local workers, as `--dask` (a scheduler's address, or
-    "local:N"; docs/cluster.md; a script that starts a local one needs `if __name__ == "__main__":`).
+    size); `skip_bad`: leave out clips that cannot be read, or coded within the bounds, listed in the
+    summary. `dask`: run the work on a Dask cluster instead of `jobs` local workers, as `--dask` (a
+    scheduler's address, or "local:N"; docs/cluster.md; a script that starts a local one needs
+    `if __name__ == "__main__":`).
     Other keywords
     are fields of `mocapzip.archive.Settings` (representation="positions", ...); `fps=60` sets every
     clip's frame rate, as `--fps` (by default a clip takes the rate its files state, else 120). An

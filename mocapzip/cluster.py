@@ -2,8 +2,8 @@
 
 Inside `on_cluster`, every `parallel_map` and `imap` of the process goes to the cluster's
 workers instead of forked ones: the first pass's reading (a task per clip, which sends back only
-what the client keeps of it: `writer._read_and_take`), the class coding (a task per class:
-`writer._coded_classes`) and the priors' re-coding (a task per clip). The
+what the client keeps of it: `first_pass._read_and_take`), the class coding (a task per class:
+`class_coding._class_task`) and the priors' re-coding (a task per clip: `priors._primed_stream`). The
 client (this process) does everything else, in the same order as with local workers, and writes
 the archive. Each task computes what local workers would from the same item and the same state,
 so the archive is byte-identical to `-j N`'s.

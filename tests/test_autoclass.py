@@ -111,15 +111,16 @@ def short_clips(shared_data):
         clips = load_clips(sources, settings.representation, settings.axis_weight_cm)
     except AttributeError:  # a codec without pose weights
         clips = load_clips(sources, settings.representation)
-    return clips, settings, ByteProxy.calibrate(clips, settings, jobs=2), paths
+    target = settings.coding_target()
+    return clips, target, ByteProxy.calibrate(clips, target, jobs=2), paths
 
 
 def test_auto_classes_on_real_walks_and_runs(short_clips):
-    clips, settings, proxy, _ = short_clips
+    clips, target, proxy, _ = short_clips
     walk = np.array([c.source.relpath.startswith("07") for c in clips])
-    forced = plan(clips, 2, settings, proxy=proxy, restarts=2)
+    forced = plan(clips, 2, target, proxy=proxy, restarts=2)
     assert forced.k == 2 and same_partition(forced.labels, walk)
-    chosen = plan(clips, None, settings, proxy=proxy, max_k=3, restarts=1)
+    chosen = plan(clips, None, target, proxy=proxy, max_k=3, restarts=1)
     assert 1 <= chosen.k <= 3
     assert chosen.estimated_bytes == min(c["bytes"] for c in chosen.candidates)
     assert chosen.estimated_bytes <= proxy.partition_bytes(np.zeros(len(clips), int))

@@ -17,7 +17,7 @@ import pytest
 from click.testing import CliRunner
 
 from mocapzip import archive
-from mocapzip.archive import writer
+from mocapzip.archive.passes import class_coding
 from mocapzip import progress
 from mocapzip.cli.main import main
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveError, ArchiveReader
@@ -124,7 +124,7 @@ def test_hdf5_signature_after_a_user_block_is_still_hdf5(tmp_path):
 def test_progress_counts_frames(tmp_path, shared_data, monkeypatch):
     """The coding bar's total is the frames coded, advanced class by class (one subject: not 0/1)."""
     bars = []
-    real = writer.progress
+    real = class_coding.progress
 
     def recording(iterable=None, **kwargs):
         bar = real(iterable, **kwargs)
@@ -134,7 +134,7 @@ def test_progress_counts_frames(tmp_path, shared_data, monkeypatch):
             bar.update = lambda n=1: updates.append(n)
         return bar
 
-    monkeypatch.setattr(writer, "progress", recording)
+    monkeypatch.setattr(class_coding, "progress", recording)
     clips = [shared_data / "cmu" / "09" / "09_01.amc", shared_data / "cmu" / "09" / "09_03.amc"]
     summary = archive.compress(clips, tmp_path / "db.mcz", archive.Settings(error_cm=2.0), jobs=1)
     [(kwargs, bar)] = bars

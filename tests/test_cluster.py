@@ -58,11 +58,11 @@ def test_dask_local_2_writes_the_archive_of_j2(shared_data, tmp_path, local_arch
 
 
 class _KillOnce(WorkerPlugin):
-    """Kills the first worker that starts coding a class (`writer._coded_class`) after `skip` such
+    """Kills the first worker that starts coding a class (`class_coding._class_task`) after `skip` such
     starts on it, once across the cluster (a file marks it done; with `every`, each time): the nanny
     restarts it, the scheduler hands its tasks on."""
 
-    def __init__(self, marker: str, skip: int, prefix: str = "_coded_class", every: bool = False):
+    def __init__(self, marker: str, skip: int, prefix: str = "_class_task", every: bool = False):
         self.marker, self.skip, self.prefix, self.every, self.seen = marker, skip, prefix, every, 0
 
     def transition(self, key, start, finish, **kwargs):
@@ -222,9 +222,9 @@ def test_a_worker_without_the_clients_folder_says_so():
 HOLD_A_CLASS = r"""
 import os, time
 from pathlib import Path
-from mocapzip.archive import writer
+from mocapzip.archive.passes import class_coding
 
-real = writer._coded_class
+real = class_coding._class_task
 
 def held(k):
     marker = Path(os.environ["MCZ_TEST_MARKER"])
@@ -235,7 +235,7 @@ def held(k):
         time.sleep(0.01)
     return real(k)
 
-writer._coded_class = held
+class_coding._class_task = held
 """
 
 

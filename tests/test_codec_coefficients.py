@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.fft
 
-from mocapzip.archive.writer import _serialise_clips
+from mocapzip.codec.entropy.priors import stored_streams
 from mocapzip.codec.entropy.coefficients import Priors, decode_matrices, encode_matrices
 from mocapzip.codec.entropy.zstd import decode_bytes, encode_sparse
 from mocapzip.codec.entropy.rangecoder import Decoder, Encoder, new_models
@@ -99,17 +99,17 @@ def test_auto_coder_stores_priors_only_where_they_pay():
     coded = {f"clip/{i:05d}": CodedClip(0.5, quantised_dct(rng, n, 40, 60.0), 0.5, quantised_dct(rng, n, 4, 20.0))
              for i, n in enumerate(rng.integers(200, 800, size=40))}
     many = {name: clip.payload("context") for name, clip in coded.items()}  # as encode_class holds them
-    coder, streams = _serialise_clips(many, "auto")
+    coder, streams = stored_streams(many, "auto")
     assert coder == "primed" and "priors" in streams
     assert sum(map(len, streams.values())) < sum(map(len, many.values()))
-    assert _serialise_clips(many, "context") == ("context", many)
+    assert stored_streams(many, "context") == ("context", many)
     priors = Priors.decode(decode_bytes(streams["priors"]))
     for name, coded in coded.items():
         back = CodedClip.from_payload(streams[name], "primed", priors=priors)
         assert np.array_equal(back.pose_ints, coded.pose_ints) and np.array_equal(back.root_ints, coded.root_ints)
     one = dict(list(many.items())[:1])
-    assert _serialise_clips(one, "auto")[0] == "context"  # 400 bytes of priors for one clip do not pay
-    assert _serialise_clips(one, "primed")[0] == "primed"
+    assert stored_streams(one, "auto")[0] == "context"  # 400 bytes of priors for one clip do not pay
+    assert stored_streams(one, "primed")[0] == "primed"
 
 
 def test_refuses_values_it_cannot_code():

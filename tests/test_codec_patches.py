@@ -18,7 +18,8 @@ from mocapzip.inputs.clip import ClipReader
 from mocapzip.inputs.discover import find_clips
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
-from mocapzip.ratecontrol.max_error import Bounds, achieved
+from mocapzip.ratecontrol.max_error import achieved
+from mocapzip.ratecontrol.target import Bounds
 
 
 def random_patches(rng, n_frames: int, width: int, count: int) -> FramePatches:

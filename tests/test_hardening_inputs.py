@@ -214,6 +214,84 @@ def test_skip_bad_with_nothing_left_is_an_error(mixed, tmp_path):
     assert os.listdir(out) == []
 
 
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_skip_bad_leaves_out_a_clip_that_no_coding_holds(shared_data, tmp_path, jobs):
+    """Issue 40: a clip refused while its class is coded (TargetError: a real clip whose root stands
+    at x = 1e9, the most a file may hold, decodes a hair past it) stopped the run even with
+    --skip-bad. Now it is left out and listed as a clip that cannot be read is, and nothing of it
+    stays: every stream is the one of the inputs without it, meta too but for `skipped`."""
+    cmu, inputs, without = shared_data / "cmu", tmp_path / "in", tmp_path / "without"
+    for folder in (inputs / "07", without / "07"):
+        folder.mkdir(parents=True)
+        for name in ("07.asf", "07_02.amc"):
+            shutil.copy(cmu / "07" / name, folder)
+    (inputs / "09").mkdir()
+    shutil.copy(cmu / "09" / "09.asf", inputs / "09")
+    lines = (cmu / "09" / "09_01.amc").read_text().splitlines()
+    for k in [k for k, line in enumerate(lines) if line.startswith("root ")]:
+        lines[k] = " ".join(["root", "1000000000", *lines[k].split()[2:]])
+    (inputs / "09" / "09_01.amc").write_text("\n".join(lines) + "\n")
+    archive, alone = tmp_path / "db.mcz", tmp_path / "alone.mcz"
+
+    result = run("compress", inputs, "-o", archive, "-c", "subject", "--skip-bad", "--json", "-j", jobs)
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    [entry] = summary["skipped"]
+    assert entry["path"] == "09/09_01.amc" and "its decoded values would pass" in entry["error"]
+    assert result.stderr.splitlines() == [f"mcz: warning: skipped 09/09_01.amc: {entry['error']}"]
+    assert summary["clips"] == 1
+
+    assert run("compress", without, "-o", alone, "-c", "subject", "-j", jobs, "-q").exit_code == 0
+    with mcz_module.ArchiveReader(archive) as left_out, mcz_module.ArchiveReader(alone) as never_there:
+        assert left_out.names() == never_there.names()
+        for name in left_out.names():
+            assert name == "meta" or left_out.read(name) == never_there.read(name), name
+    with Archive(archive) as left_out, Archive(alone) as never_there:
+        meta = dict(left_out.meta)
+        assert meta.pop("skipped") == summary["skipped"]
+        assert meta == never_there.meta
+
+
+def test_a_clip_left_out_at_coding_leaves_its_class_as_if_it_never_was(shared_data, tmp_path, monkeypatch):
+    """A refused clip whose class keeps other clips: the class's poses are summed again without it,
+    and the pooled classes, bases and streams are those of the inputs without it. (No real clip is
+    refused beside others of its class cheaply, so the refusal is made for 09_02 here.)"""
+    from mocapzip import archive
+    from mocapzip.ratecontrol import encode
+    from mocapzip.ratecontrol.max_error import TargetError
+
+    cmu, inputs, without = shared_data / "cmu", tmp_path / "in", tmp_path / "without"
+    for folder, names in ((inputs, ["09_02.amc", "09_03.amc"]), (without, ["09_03.amc"])):
+        (folder / "07").mkdir(parents=True)
+        (folder / "09").mkdir()
+        for name in ("07.asf", "07_02.amc"):
+            shutil.copy(cmu / "07" / name, folder / "07")
+        for name in ["09.asf", *names]:
+            shutil.copy(cmu / "09" / name, folder / "09")
+    real = encode.achieved
+
+    def refusing(clip, check, bounds):
+        if clip.source.relpath == "09/09_02.amc":
+            raise TargetError("no coding holds it (made so by the test)", clip.source.motion)
+        return real(clip, check, bounds)
+
+    monkeypatch.setattr(encode, "achieved", refusing)
+    with pytest.warns(UserWarning, match="skipped 09/09_02.amc: .*made so by the test"):
+        summary = archive.compress([inputs], tmp_path / "db.mcz", archive.Settings(), skip_bad=True)
+    assert [entry["path"] for entry in summary["skipped"]] == ["09/09_02.amc"] and summary["clips"] == 2
+    archive.compress([without], tmp_path / "alone.mcz", archive.Settings())
+    with mcz_module.ArchiveReader(tmp_path / "db.mcz") as left_out, \
+            mcz_module.ArchiveReader(tmp_path / "alone.mcz") as never_there:
+        assert left_out.names() == never_there.names()
+        for name in left_out.names():
+            assert name == "meta" or left_out.read(name) == never_there.read(name), name
+    with Archive(tmp_path / "db.mcz") as left_out, Archive(tmp_path / "alone.mcz") as never_there:
+        assert [c["name"] for c in left_out.meta["classes"]] == ["pooled"]  # 07 and 09 share a basis
+        meta = dict(left_out.meta)
+        assert meta.pop("skipped") == summary["skipped"]
+        assert meta == never_there.meta
+
+
 def test_without_skip_bad_the_first_bad_clip_stops_the_run(mixed, tmp_path):
     root, cases, good = mixed
     out = tmp_path / "out"

@@ -20,7 +20,7 @@ import pytest
 
 from hostile_archives import BASES, Case, _stream, build
 from mocapzip.archive import Archive, decompress
-from mocapzip.archive.writer import _serialise_clips
+from mocapzip.codec.entropy.priors import stored_streams
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveReader
@@ -340,6 +340,6 @@ def test_the_clips_coded_again_from_the_priors_in_workers_are_the_same(coder):
         interim = {name: CodedClip.from_payload(reader.read(name), "primed", None, archive.priors).payload("context")
                    for name in reader.names() if name.startswith("clip/")}
     assert len(interim) == 2
-    one, two = _serialise_clips(interim, coder, jobs=1), _serialise_clips(interim, coder, jobs=2)
+    one, two = stored_streams(interim, coder, jobs=1), stored_streams(interim, coder, jobs=2)
     assert one == two
     assert coder == "auto" or "priors" in one[1]

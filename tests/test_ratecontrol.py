@@ -65,7 +65,7 @@ def test_a_class_of_one_short_clip_stores_its_basis_coarser(subject):
     settings, clips, _ = subject
     clip = min(clips, key=lambda c: c.motion.n_frames)
     transform = get_stage("transform", settings.transform)
-    basis, codings = encode_class([clip], transform, settings)
+    basis, codings = encode_class([clip], transform, settings.coding_target())
     accumulator = CovarianceAccumulator(clip.poses.shape[1])
     accumulator.add(clip.poses)
     variances = PcaBasis.fit(accumulator).variances[: basis.q]

@@ -1,7 +1,7 @@
-"""The archive: settings (`settings`), the encoder (`writer`), the reader (`reader`), the checks
-on meta every reader runs (`meta`), the `skeletons` stream (`skeletons`) and the zstd
-dictionaries and skeleton means of the format (`dictionaries/`). Old formats' differences are
-`mocapzip.legacy`'s.
+"""The archive: settings (`settings`), the encoder (`writer`, a recipe of the compress `passes/`),
+the reader (`reader`), the checks on meta every reader runs (`meta`), the `skeletons` stream
+(`skeletons`) and the zstd dictionaries and skeleton means of the format (`dictionaries/`). Old
+formats' differences are `mocapzip.legacy`'s.
 
     compress(inputs, "db.mcz", Settings(error_cm=1.0))
     with Archive("db.mcz") as archive: archive.decode(0)   # a formats.amc.Motion

@@ -15,7 +15,7 @@ import fastjsonschema
 import pywt
 
 from mocapzip.classes.modes import MAX_PATTERN_CHARS, compiled_modes
-from mocapzip.classes.segment import coded_range
+from mocapzip.codec.segments import coded_range
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
 from mocapzip.formats.bvh import MAX_MOTION_CHARS as BVH_MOTION_CHARS
 from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES

@@ -25,7 +25,7 @@ from mocapzip.archive.meta import contents_of
 from mocapzip.archive.meta import validate as validate_meta
 from mocapzip.archive.settings import Settings
 from mocapzip.archive.skeletons import decode_skeletons
-from mocapzip.classes.segment import coded_range, join_decoded
+from mocapzip.codec.segments import coded_range, join_decoded
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import CodedClip, reconstruct
 from mocapzip.codec.tensor import TensorModel, prediction

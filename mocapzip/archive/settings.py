@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 
 from mocapzip.classes.modes import compiled_modes
 from mocapzip.defaults import DEFAULT_FPS
+from mocapzip.ratecontrol.target import Bounds, CodingTarget
 from mocapzip.stages import get_stage, stage_ids
 
 DEFAULT_ERROR_CM = 1.0
@@ -62,6 +63,12 @@ class Settings:
     def stages(self) -> dict:
         """The stages of `chain()`, built from the registry (ValueError for an unknown one)."""
         return {kind: get_stage(kind, config) for kind, config in self.chain().items()}
+
+    def coding_target(self) -> CodingTarget:
+        """What lossy coding reads of these settings: rate control and -c auto's byte model take this part."""
+        return CodingTarget(self.error_cm, Bounds(self.max_error_cm, self.contact_error_cm, self.repair_glitches),
+                            self.plant_feet, self.transform, self.dead_zone, self.basis_precision,
+                            None if self.split is None else tuple(self.split))
 
 
 class SettingsError(ValueError):

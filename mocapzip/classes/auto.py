@@ -1,6 +1,6 @@
 """Automatic classes: `mcz compress --classes auto[:K]` groups clips into K PCA subspaces without labels.
 
-Entry point: `auto_classes(units, k, settings) -> ["auto0" | "auto1" | ..., one per unit]`, a unit
+Entry point: `auto_classes(units, k, target) -> ["auto0" | "auto1" | ..., one per unit]`, a unit
 being a whole clip or (`--segment`) one segment of a take.
 
 Two ways of finding K classes, both from per-clip statistics (count, mean, scatter of the
@@ -32,6 +32,7 @@ from mocapzip.codec.pca import PcaBasis
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.classes.ppca import DEFAULT_VARIANCE_SHARE, PpcaModel
 from mocapzip.ratecontrol.class_bytes import ByteProxy, ClipStats, merged
+from mocapzip.ratecontrol.target import CodingTarget
 
 MAX_ITERATIONS = 100
 ANNEAL_COOLING = 0.7  # temperature factor per step (Hou et al. halve it; slower cooling splits more reliably)
@@ -213,7 +214,7 @@ class AutoPlan:
     candidates: list[dict]  # {"k", "method", "seed", "bytes"} for every partition tried
 
 
-def plan(clips, k: int | None, settings, *, max_k: int | None = None, seed: int = 0, restarts: int = 3,
+def plan(clips, k: int | None, target: CodingTarget, *, max_k: int | None = None, seed: int = 0, restarts: int = 3,
          methods=METHODS, proxy: ByteProxy | None = None, jobs: int = 1) -> AutoPlan:
     """Partition clips of one pose width into classes; fewest estimated bytes wins.
 
@@ -226,7 +227,7 @@ def plan(clips, k: int | None, settings, *, max_k: int | None = None, seed: int 
     Without "kss" in `methods`, annealing searches every K instead.
     """
     n = len(clips)
-    proxy = proxy or ByteProxy.calibrate(clips, settings, jobs=jobs)
+    proxy = proxy or ByteProxy.calibrate(clips, target, jobs=jobs)
     stats = proxy.stats
     ks = [min(k, n)] if k else list(range(1, min(n, max_k or DEFAULT_MAX_K) + 1))
     search = "kss" if "kss" in methods else "anneal"
@@ -278,7 +279,7 @@ def _canonical(labels) -> np.ndarray:
     return np.array([order[int(v)] for v in labels], int)
 
 
-def auto_classes(clips, k: int | None, settings, *, max_k: int | None = None, seed: int = 0,
+def auto_classes(clips, k: int | None, target: CodingTarget, *, max_k: int | None = None, seed: int = 0,
                  restarts: int = 3, jobs: int = 1, report: dict | None = None) -> list[str]:
     """The automatic class name ("auto0", "auto1", ...) of each clip, in the order of `clips`.
 
@@ -296,7 +297,7 @@ def auto_classes(clips, k: int | None, settings, *, max_k: int | None = None, se
     plans = []
     for width, indices in sorted(by_width.items(), key=lambda kv: kv[1][0]):
         group = [clips[i] for i in indices]
-        result = plan(group, k, settings, max_k=max_k, seed=seed, restarts=restarts, jobs=jobs)
+        result = plan(group, k, target, max_k=max_k, seed=seed, restarts=restarts, jobs=jobs)
         for i, label in zip(indices, result.labels):
             names[i] = f"auto{offset + int(label)}"
         plans.append({"width": width, "clips": len(indices), "k": result.k, "method": result.method,

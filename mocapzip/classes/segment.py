@@ -16,11 +16,7 @@ shorter than `min_frames` are never made.
 
     segment_take(poses) -> [0, c1, c2, ..., n_frames]   (cut frames, first and last included)
 
-Coding a cut take (`mcz compress --segment`): each segment is coded over a range reaching
-`OVERLAP` frames past its cuts (`coded_range`), because a transform-coded curve is least
-accurate at its ends (about ten frames at 120 Hz); `join_segments` then crossfades
-neighbours over the middle half of the overlap, where both are accurate, so the seam
-neither jumps nor carries an edge's error.
+How a cut take is coded and joined again (`mcz compress --segment`): `codec.segments`.
 """
 
 from __future__ import annotations
@@ -35,7 +31,6 @@ HORIZON = 120  # frames scored after the window (1 s at 120 Hz)
 STEP = 10  # window growth per evaluation
 RISE = 3.0  # a peak must rise this many standard deviations above H's history
 VARIANCE_SHARE = 0.9  # Barbic et al. keep 90 % of the variance for the window model
-OVERLAP = 16  # frames a segment is coded past each of its cuts (stored per take: the decoder reads it)
 
 
 def distance_curve(poses: np.ndarray, start: int, stop: int, min_frames: int = MIN_FRAMES,
@@ -97,37 +92,3 @@ def segment_take(poses: np.ndarray, min_frames: int = MIN_FRAMES, horizon: int =
         start = peak
     cuts.append(n)
     return cuts
-
-
-def coded_range(first: int, frames: int, n_frames: int, overlap: int = OVERLAP) -> tuple[int, int]:
-    """Frames [lo, hi) of a take coded for the segment of `frames` frames from `first`."""
-    return max(first - overlap, 0), min(first + frames + overlap, n_frames)
-
-
-def join_segments(pieces: list[np.ndarray], segments: list[tuple[int, int]], n_frames: int,
-                  overlap: int = OVERLAP) -> np.ndarray:
-    """One take (n_frames, ...) from its segments' decoded `pieces`, each over its `coded_range`.
-
-    `segments` are the (first, frames) of each segment, partitioning the take in order.
-    Around a cut c the weight moves linearly from the earlier piece to the later over
-    [c - overlap/2, c + overlap/2) (overlap >= 2); the weights sum to one on every frame.
-    """
-    half = overlap // 2
-    centres = np.arange(n_frames) + 0.5
-    out = np.zeros((n_frames,) + pieces[0].shape[1:])
-    for s, (piece, (first, frames)) in enumerate(zip(pieces, segments)):
-        lo, hi = coded_range(first, frames, n_frames, overlap)
-        weight = np.ones(hi - lo)
-        if s > 0:
-            weight = np.minimum(weight, np.clip((centres[lo:hi] - first + half) / (2 * half), 0, 1))
-        if s < len(pieces) - 1:
-            weight = np.minimum(weight, np.clip((first + frames + half - centres[lo:hi]) / (2 * half), 0, 1))
-        out[lo:hi] += weight.reshape((-1,) + (1,) * (piece.ndim - 1)) * piece
-    return out
-
-
-def join_decoded(decoded: list, cores: list[tuple[int, int]], n_frames: int, overlap: int):
-    """(poses, root) of a take from its segments' decoded (poses, root) (`join_segments`)."""
-    poses = join_segments([p for p, _ in decoded], cores, n_frames, overlap)
-    root = None if decoded[0][1] is None else join_segments([r for _, r in decoded], cores, n_frames, overlap)
-    return poses, root

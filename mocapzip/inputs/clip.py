@@ -206,7 +206,7 @@ class ClipReader:
 
     def __setstate__(self, state: dict) -> None:
         """A copy in a Dask worker keeps the clips it reads, within the budget: the worker codes a whole
-        class, and visits each of its clips several times (`writer._coded_class`)."""
+        class, and visits each of its clips several times (`archive.passes.class_coding._class_task`)."""
         self.__dict__.update(state, _keeps_loads=True)
 
     def read(self, source: ClipSource) -> LoadedClip:

@@ -32,6 +32,7 @@ from mocapzip.motion.kinematics import forward
 from mocapzip.parallel import parallel_map
 from mocapzip.ratecontrol.encode import ROOT_STEP_RATIO, pca_share
 from mocapzip.ratecontrol.search import largest_step, largest_step_power_law
+from mocapzip.ratecontrol.target import CodingTarget
 from mocapzip.representations.weighted import channels_from_weighted
 from mocapzip.stages import get_stage
 
@@ -104,7 +105,7 @@ class ByteProxy:
     """
 
     poses: list[np.ndarray]
-    settings: object
+    target: CodingTarget
     tolerance: np.ndarray  # (N,)
     weights: np.ndarray  # (N, M)
     curves: list[tuple[np.ndarray, np.ndarray]]
@@ -114,15 +115,15 @@ class ByteProxy:
     details: dict = field(default_factory=dict)  # members -> {"components", "basis_bytes", "clip_bytes"}
 
     @classmethod
-    def calibrate(cls, clips, settings, jobs: int = 1) -> "ByteProxy":
+    def calibrate(cls, clips, target: CodingTarget, jobs: int = 1) -> "ByteProxy":
         poses = [c.poses for c in clips]
         stats = [ClipStats.of(p) for p in poses]
-        _SHARED.update(clips=clips, pca=union_pca(stats), settings=settings)
+        _SHARED.update(clips=clips, pca=union_pca(stats), target=target)
         try:
             rows = parallel_map(_calibrate_clip, range(len(clips)), jobs)
         finally:
             _SHARED.clear()
-        return cls(poses, settings, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
+        return cls(poses, target, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
                    [r[2] for r in rows], np.array([r[3] for r in rows]), stats)
 
     def joint_error(self, i: int, weighted_ms: float) -> float:
@@ -137,7 +138,7 @@ class ByteProxy:
 
     def quantisation_allowance(self, i: int, weighted_ms: float) -> float:
         """Weighted mean squared quantisation error per frame clip i may add to this truncation."""
-        target, t = self.settings.error_cm, self.joint_error(i, weighted_ms)
+        target, t = self.target.error_cm, self.joint_error(i, weighted_ms)
         if t >= target:
             return 0.0
         return float(((target**ERROR_POWER - t**ERROR_POWER) ** (1 / ERROR_POWER) / self.gamma[i]) ** 2)
@@ -174,16 +175,16 @@ class ByteProxy:
         return np.array(residual), gains, needed
 
     def _class_bytes(self, members: tuple[int, ...]) -> int:
-        settings = self.settings
-        transform = get_stage("transform", settings.transform)
+        target = self.target
+        transform = get_stage("transform", target.transform)
         pca = union_pca([self.stats[i] for i in members])
         residual, gains, needed = self._truncations(members, pca)
         q = max(needed)
-        basis = _basis_bytes(pca, q, settings) + CLASS_OVERHEAD_BYTES
+        basis = _basis_bytes(pca, q, target) + CLASS_OVERHEAD_BYTES
         # each clip's curves on the q components (on one at q = 0, for the transform; none is kept)
         curves = [transform.forward((self.poses[i] - pca.mean) @ pca.components[:, :max(q, 1)]) for i in members]
         clip_bytes = sum(_clip_bytes(curves[row][:, :q], gains[row][:q],
-                                     self.quantisation_allowance(i, residual[row, q]), settings.dead_zone)
+                                     self.quantisation_allowance(i, residual[row, q]), target.dead_zone)
                          for row, i in enumerate(members))
         self.details[members] = {"components": q, "basis_bytes": basis, "clip_bytes": clip_bytes}
         return int(basis + clip_bytes)
@@ -192,11 +193,11 @@ class ByteProxy:
 _SHARED: dict = {}  # what forked calibration workers read
 
 
-def _basis_bytes(pca: PcaBasis, q: int, settings) -> int:
+def _basis_bytes(pca: PcaBasis, q: int, target: CodingTarget) -> int:
     """The size of a class basis of q components quantised as `encode.encode_class` stores it: its
     header, and its integers in zstd layouts like the clip estimates (the archive's range coder
     is about 7 % smaller)."""
-    steps = ClassBasis.steps_for(pca.variances[:q], settings.error_cm, settings.basis_precision)
+    steps = ClassBasis.steps_for(pca.variances[:q], target.error_cm, target.basis_precision)
     basis = ClassBasis.quantised(pca.mean, pca.components[:, :q], steps)
     return len(basis.header()) + sum(len(encode_ints(ints)) for ints in basis.integers())
 
@@ -246,7 +247,7 @@ def _calibrate_clip(index: int):
     in the codec) finds the step meeting the whole budget, and gamma follows from the
     combination rule (see ByteProxy).
     """
-    clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
+    clip, pca, coding = _SHARED["clips"][index], _SHARED["pca"], _SHARED["target"]
     weights = _column_weights(clip)
     n = len(clip.poses)
     stride = max(CALIBRATION_STRIDE, -(-n // MAX_CALIBRATION_FRAMES))
@@ -255,8 +256,8 @@ def _calibrate_clip(index: int):
     coef, poses = coef_all[frames], clip.poses[frames]
     root = None if clip.root is None else clip.root[frames]
     m = pca.components.shape[1]
-    target = settings.error_cm
-    share_target = pca_share(settings) * target
+    target = coding.error_cm
+    share_target = pca_share(coding) * target
 
     def weighted_rms(a, b):
         return float(np.sqrt((((a - b) ** 2) * weights).sum(axis=1).mean()))
@@ -288,12 +289,12 @@ def _calibrate_clip(index: int):
     # the components of the encoder's share, then the step search on pose and root together
     q0 = int(round(np.exp(np.interp(aim, lj, np.log(qs)[::-1])))) if aim >= lj[0] else qs[-1]
     q0 = min(max(q0, 1), m)
-    transform = get_stage("transform", settings.transform)
+    transform = get_stage("transform", coding.transform)
     truncated = pca.mean + coef[:, :q0] @ pca.components[:, :q0].T
     t0 = joint_error(truncated, root)
     curves = transform.forward(coef_all[:, :q0])
     root_curves = None if clip.root is None else transform.forward(scale_root(clip.root))
-    dz, cache = settings.dead_zone, {}
+    dz, cache = coding.dead_zone, {}
 
     def error(step):
         quantiser = UniformQuantiser(step, dz)

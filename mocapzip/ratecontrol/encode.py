@@ -32,10 +32,11 @@ from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.inputs.clip import FinalCheck
 from mocapzip.parallel import parallel_map
-from mocapzip.ratecontrol.max_error import Achieved, Bounds, TargetError, achieved, smallest_within
+from mocapzip.ratecontrol.max_error import Achieved, TargetError, achieved, smallest_within
 from mocapzip.ratecontrol.planted_feet import planted
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
 from mocapzip.ratecontrol.search import largest_step, smallest_count_guided
+from mocapzip.ratecontrol.target import CodingTarget
 
 ROOT_STEP_RATIO = 0.2
 
@@ -60,7 +61,7 @@ BAND_RESCALE = 0.03  # a proxy factor this far from the one the band was chosen 
 NARROWER_TRIAL = 1.02  # a narrower band whose proxy coding is at most this much larger is tried on true scores
 # (1.06 tried more bands: on the shared CMU set 0.3 % smaller at 1 cm, 0.2 % at 0.5 cm, for 6 % more time)
 COARSER_BASIS_SHARE = 0.25  # a chosen basis over this share of its class's estimated bytes is also tried coarser ...
-COARSER_BASES = (2, 4)  # ... at these multiples of settings.basis_precision
+COARSER_BASES = (2, 4)  # ... at these multiples of target.basis_precision
 BRACKET = 0.01  # steps 1 % apart, one meeting the target and one not: the search is done
 TOLERANCE_EXPONENT = 0.0  # seed 003's tolerances weighted by singular value (`component_weights`); 0: every
 # component quantised alike. On the shared CMU set at 1 cm, 0.25 is 7.9 % larger, -0.25 0.7 % (benchmarks/seed_poly.py)
@@ -79,18 +80,19 @@ def component_weights(variances: np.ndarray) -> np.ndarray:
 _SHARED: dict = {}  # what the workers of a class's maps read (its clips by index: each loads them, never pickled)
 
 
-def encode_class(clips, transform, settings, jobs: int = 1, accumulator: CovarianceAccumulator | None = None):
-    """Fit the class basis and code each clip within settings.error_cm; return (basis, codings): per
-    clip a `ClassCoding` (its stream, achieved errors, twist flips and, with settings.max_error_cm,
-    frame patches).
+def encode_class(clips, transform, target: CodingTarget, jobs: int = 1,
+                 accumulator: CovarianceAccumulator | None = None):
+    """Fit the class basis and code each clip within target.error_cm; return (basis, codings): per
+    clip a `ClassCoding` (its stream, achieved errors, twist flips and, with a bound on single
+    joints, frame patches).
 
     The budget is split between the basis and the quantiser: the class keeps the fewest
-    components that bring every clip's PCA-only error under PCA_SHARE of it (settings.split
+    components that bring every clip's PCA-only error under PCA_SHARE of it (target.split
     forces another share). Each clip's bytes with that basis are then estimated at the largest
     step its calibrated proxy allows (`_estimated_sizes`), which is also where its coding starts
     (`code_clip`).
 
-    A basis is stored at `settings.basis_precision`. One that would take more than
+    A basis is stored at `target.basis_precision`. One that would take more than
     COARSER_BASIS_SHARE of its class's estimated bytes (a class of few or short clips) is also
     estimated at COARSER_BASES times coarser, and the smallest estimate is coded.
 
@@ -104,19 +106,18 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
         for clip in clips:
             accumulator.add(clip.poses)
     pca = PcaBasis.fit(accumulator)
-    target = settings.error_cm
-    _SHARED.update(clips=clips, pca=pca, transform=transform, settings=settings)
+    _SHARED.update(clips=clips, pca=pca, transform=transform, target=target)
 
     def basis_of(q: int, precision: float) -> ClassBasis:
         weights = component_weights(pca.variances[:q])
         return ClassBasis.quantised(pca.mean, pca.components[:, :q] / weights,
-                                    ClassBasis.steps_for(pca.variances[:q], target, precision) / weights)
+                                    ClassBasis.steps_for(pca.variances[:q], target.error_cm, precision) / weights)
 
     try:
-        precision = settings.basis_precision
+        precision = target.basis_precision
         basis = basis_of(max(parallel_map(_components_for_share, range(len(clips)), jobs)), precision)
         _SHARED["starts"] = [None] * len(clips)
-        if not settings.split:  # a forced split codes on end-to-end scores alone: nothing to estimate
+        if not target.split:  # a forced split codes on end-to-end scores alone: nothing to estimate
             (total,), (_SHARED["starts"],) = _estimated([basis], jobs)
             if len(basis.encode()) > COARSER_BASIS_SHARE * total:
                 # a basis that is much of its class's bytes (few or short clips) may pay to be stored coarser
@@ -125,13 +126,13 @@ def encode_class(clips, transform, settings, jobs: int = 1, accumulator: Covaria
                 for (coarser, trial), trial_total, trial_starts in zip(trials, totals, starts):
                     if trial_total < total:
                         precision, basis, total, _SHARED["starts"] = coarser, trial, trial_total, trial_starts
-        basis, codings = _coded_with(basis, precision, basis_of, clips, target, settings, jobs)
+        basis, codings = _coded_with(basis, precision, basis_of, clips, target.error_cm, jobs)
     finally:
         _SHARED.clear()
     return basis, codings
 
 
-def _coded_with(basis: ClassBasis, precision: float, basis_of, clips, target: float, settings, jobs: int):
+def _coded_with(basis: ClassBasis, precision: float, basis_of, clips, target: float, jobs: int):
     """(basis, per clip its `ClassCoding`): every clip coded with `basis` (stored at `precision`),
     stored finer (`basis_of(q, precision)`) while some clip cannot meet the target because of its rounding."""
     for _ in range(BASIS_REFINEMENTS):
@@ -160,7 +161,7 @@ def _components_for_share(index: int) -> int:
     """The fewest components that keep this clip's PCA-only error within `pca_share` of the
     target (scored end to end on every SEARCH_STRIDE-th frame), found by true scores guided by
     `proxy.TruncationProxy` (`search.smallest_count_guided`)."""
-    clip, pca, settings = _SHARED["clips"][index], _SHARED["pca"], _SHARED["settings"]
+    clip, pca, target = _SHARED["clips"][index], _SHARED["pca"], _SHARED["target"]
     frames = slice(None, None, SEARCH_STRIDE)
     poses, root = clip.poses[frames], None if clip.root is None else clip.root[frames]
     proxy = TruncationProxy(poses, pca.mean, pca.components, clip.representation.joint_position_columns(clip.model))
@@ -168,13 +169,13 @@ def _components_for_share(index: int) -> int:
     def error(q: int) -> float:
         return clip.error(proxy.truncated(q), root, frames)[0]
 
-    allowed = pca_share(settings) * settings.error_cm
+    allowed = pca_share(target) * target.error_cm
     return smallest_count_guided(error, proxy, allowed, 0, pca.components.shape[1])
 
 
-def pca_share(settings) -> float:
+def pca_share(target: CodingTarget) -> float:
     """The share of the error budget PCA truncation may take (the rest is the quantiser's)."""
-    return settings.split[1] / sum(settings.split) if settings.split else PCA_SHARE
+    return target.split[1] / sum(target.split) if target.split else PCA_SHARE
 
 
 def _estimated_sizes(index: int) -> list[tuple[int, tuple[float, float, float]]]:
@@ -185,10 +186,10 @@ def _estimated_sizes(index: int) -> list[tuple[int, tuple[float, float, float]]]
     Each basis's bands are searched near the band the one before picked (`_ClipSearch.pick`);
     one end-to-end score per basis sets its factor: the proxy misses part of the error the
     basis's rounding leaves, so the factor differs between bases."""
-    settings, clip, transform = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"]
+    target, clip, transform = _SHARED["target"], _SHARED["clips"][index], _SHARED["transform"]
     estimates, scale, step, band = [], 1.0, None, None
     for basis in _SHARED["bases"]:
-        search = _ClipSearch(clip, basis, transform, settings.error_cm, settings.dead_zone, ESTIMATE_FRAMES)
+        search = _ClipSearch(clip, basis, transform, target.error_cm, target.dead_zone, ESTIMATE_FRAMES)
         step, band = search.pick(scale, near=band, guess=step)
         scale = search.measured_scale(step, band, scale)
         step = search.step_for(band, scale, guess=step)
@@ -220,20 +221,19 @@ class ClassCoding:
 
 
 def _code_clip(index: int) -> ClassCoding:
-    """The clip coded with the class basis, its foot lock (settings.plant_feet), and what it achieves;
-    with a bound on single joints (settings.max_error_cm, contact_error_cm), at the mean aim that needs the fewest bytes with
+    """The clip coded with the class basis, its foot lock (target.plant_feet), and what it achieves;
+    with a bound on single joints (target.bounds), at the mean aim that needs the fewest bytes with
     its patches (`max_error.smallest_within`)."""
-    settings, clip, transform, basis = _SHARED["settings"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
+    target, clip, transform, basis = _SHARED["target"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
     step, band, scale = _SHARED["starts"][index] or (None, None, None)
 
-    def coded_at(target: float) -> ClassCoding:
-        start = (step, band) if target == settings.error_cm and step is not None else None  # what was estimated
-        coding = code_clip(clip, basis, transform, target, settings.dead_zone, settings.split, start, scale)
-        check, stances = planted(clip, coding.check, settings.error_cm) if settings.plant_feet else (coding.check, None)
-        return ClassCoding(coding.coded.payload(), *achieved(clip, check, bounds), coding.twists, stances)
+    def coded_at(aim: float) -> ClassCoding:
+        start = (step, band) if aim == target.error_cm and step is not None else None  # what was estimated
+        coding = code_clip(clip, basis, transform, aim, target.dead_zone, target.split, start, scale)
+        check, stances = planted(clip, coding.check, target.error_cm) if target.plant_feet else (coding.check, None)
+        return ClassCoding(coding.coded.payload(), *achieved(clip, check, target.bounds), coding.twists, stances)
 
-    bounds = Bounds.of(settings)
-    return smallest_within(coded_at, settings.error_cm, bounds.on_joints)
+    return smallest_within(coded_at, target.error_cm, target.bounds.on_joints)
 
 
 @dataclass

@@ -28,6 +28,7 @@ from mocapzip.formats.text import MAX_ABS_VALUE, in_value_range
 from mocapzip.inputs.glitches import glitch_mask, repaired_ranges
 from mocapzip.motion import compiled
 from mocapzip.motion.contacts import contacts
+from mocapzip.ratecontrol.target import Bounds
 
 
 PATCH_DEAD_ZONE = 0.45  # small residuals left out: a frame then passes at a finer level with fewer values
@@ -58,24 +59,6 @@ class Achieved:
         if not flat.size:
             return cls(0.0, 0.0, 0.0, repaired)
         return cls(float(compiled.np_sum(flat) / flat.size), float(np.percentile(flat, 99)), float(flat.max()), repaired)
-
-
-@dataclass(frozen=True)
-class Bounds:
-    """What holds single joints, beside the mean: the settings `achieved` enforces."""
-
-    max_error_cm: float | None = None  # every joint of every frame
-    contact_error_cm: float | None = None  # planted foot joints (`motion.contacts`)
-    repair_glitches: bool = False  # the joints a source glitch throws off are not held (`glitches.glitch_mask`)
-
-    @classmethod
-    def of(cls, settings) -> "Bounds":
-        return cls(settings.max_error_cm, settings.contact_error_cm, settings.repair_glitches)
-
-    @property
-    def on_joints(self) -> bool:
-        """Whether any joint has a bound of its own (then patches may be needed)."""
-        return self.max_error_cm is not None or self.contact_error_cm is not None
 
 
 def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePatches | None]:

@@ -34,6 +34,7 @@ from mocapzip.motion.kinematics import forward
 from mocapzip.motion.physics import physics_features
 from mocapzip.motion.timewarp import Warping, multiscale_dtw, path_moves
 from mocapzip.ratecontrol.encode import encode_class
+from mocapzip.ratecontrol.target import CodingTarget
 
 # ranks tried: of the frames and pose-value modes as shares of their sizes, and of each natural
 # mode (None: all its levels; 1: the class's one warped motion). On the shared data the best of
@@ -93,13 +94,13 @@ class TensorClass:
                 + sum(coding.size for coding in self.codings))
 
 
-def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], transform, settings,
+def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], transform, target: CodingTarget,
                         tried: list | None = None):
     """(basis, codings, TensorClass or None): the class coded as `encode_class` codes it, and with
     a tensor model at each of RANKS; whichever takes the fewest bytes. `at`: each clip's
     levels in the natural modes (`classes.modes.natural_modes`), a full grid. `tried`, if a list,
     receives what each coding took (benchmarks/tensor.py reports it)."""
-    basis, codings = encode_class(clips, transform, settings)
+    basis, codings = encode_class(clips, transform, target)
     best_size, best = len(basis.encode()) + sum(coding.size for coding in codings), None
     if tried is not None:
         tried.append({"model": "pca", "bytes": best_size})
@@ -116,9 +117,9 @@ def encode_tensor_class(clips: list[LoadedClip], at: list[tuple[int, ...]], tran
         if not _storable(tensor.shape, ranks):
             continue
         core, factors = hooi(tensor, ranks)
-        model = TensorModel.quantised(mean, core, factors, CORE_STEP_SHARE * settings.error_cm)
+        model = TensorModel.quantised(mean, core, factors, CORE_STEP_SHARE * target.error_cm)
         residual = [predicted(clip, prediction(model, place, path)) for clip, place, path in zip(clips, at, paths)]
-        trial = TensorClass(model, at, paths, *encode_class(residual, transform, settings))
+        trial = TensorClass(model, at, paths, *encode_class(residual, transform, target))
         if tried is not None:
             tried.append({"model": "tensor", "ranks": ranks, "bytes": trial.size, "model_bytes": len(trial.model_stream),
                           "path_bytes": sum(map(len, trial.moves)), "basis_bytes": len(trial.basis.encode()),
