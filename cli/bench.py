@@ -10,6 +10,7 @@ import click
 from mocapzip.cli import importing
 from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, max_error_value
 from mocapzip.cli.errors import reports_errors
+from mocapzip.defaults import ACL_SHELL_CM
 
 CODEC_CHOICES = ("mcz", "hou", "hou-shared", "xz", "zstd")
 
@@ -75,7 +76,7 @@ def _codecs(values):
 @click.option("--contact-error", "contact_error", metavar="CM|none", callback=max_error_value, default=None,
               help="mcz's bound on planted foot joints, as compress takes it (default: as compress).")
 @click.option("--plant-feet", is_flag=True, help="mcz holds the source's planted feet still, as compress --plant-feet.")
-@click.option("--shell-cm", type=click.FloatRange(min=0), default=3.0, show_default=True, metavar="CM",
+@click.option("--shell-cm", type=click.FloatRange(min=0), default=ACL_SHELL_CM, show_default=True, metavar="CM",
               help="Distance from every bone of the virtual vertices whose worst error is reported (ACL's "
                    "metric, docs/acl.md).")
 @click.option("--per-clip", is_flag=True, help="Also print one line per clip.")

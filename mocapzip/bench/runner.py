@@ -68,10 +68,9 @@ import numpy as np
 from mocapzip import __version__
 from mocapzip.classes.by_name import read_class_table
 from mocapzip.cli.choices import contact_error_cm, max_error_cm
-from mocapzip.defaults import BLAS_THREAD_VARIABLES, DEFAULT_FPS
+from mocapzip.defaults import ACL_SHELL_CM, BLAS_THREAD_VARIABLES, DEFAULT_FPS
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import ClipSource, find_clips, no_clips
-from mocapzip.motion.metrics import ACL_SHELL_CM
 from mocapzip.progress import progress
 
 CODECS = ("mcz", "hou", "hou-shared", "xz", "zstd")
