@@ -62,13 +62,13 @@ import numpy as np  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 import mocapzip  # noqa: E402
-from mocapzip.defaults import DEFAULT_FPS  # noqa: E402
+from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_FPS  # noqa: E402
 from mocapzip.formats.amc import read_amc, write_amc  # noqa: E402
 from mocapzip.formats.bvh import read_bvh, write_bvh  # noqa: E402
 from mocapzip.inputs.clip import ClipReader  # noqa: E402
 from mocapzip.inputs.discover import ClipSource, find_clips, is_bvh  # noqa: E402
 from mocapzip.motion.kinematics import Pose, forward  # noqa: E402
-from mocapzip.motion.metrics import ACL_SHELL_CM, joint_distances, shell_bones, shell_frames, shell_vertex_errors  # noqa: E402
+from mocapzip.motion.metrics import joint_distances, shell_bones, shell_frames, shell_vertex_errors  # noqa: E402
 from mocapzip.motion.skeleton import SkeletonModel  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"

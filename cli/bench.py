@@ -10,6 +10,7 @@ import click
 from mocapzip.cli import importing
 from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, max_error_value
 from mocapzip.cli.errors import reports_errors
+from mocapzip.defaults import ACL_SHELL_CM
 
 CODEC_CHOICES = ("mcz", "hou", "hou-shared", "xz", "zstd")
 
@@ -75,18 +76,23 @@ def _codecs(values):
 @click.option("--contact-error", "contact_error", metavar="CM|none", callback=max_error_value, default=None,
               help="mcz's bound on planted foot joints, as compress takes it (default: as compress).")
 @click.option("--plant-feet", is_flag=True, help="mcz holds the source's planted feet still, as compress --plant-feet.")
+@click.option("--shell-cm", type=click.FloatRange(min=0), default=ACL_SHELL_CM, show_default=True, metavar="CM",
+              help="Distance from every bone of the virtual vertices whose worst error is reported (ACL's "
+                   "metric, docs/acl.md).")
 @click.option("--per-clip", is_flag=True, help="Also print one line per clip.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no table (files are still written).")
 @reports_errors
 def bench(inputs, errors, representations, transforms, wavelet, classes, splits, codecs, groups, asf, units, jobs,
-          json_path, csv_path, plot_path, max_error, contact_error, plant_feet, per_clip, quiet):
+          json_path, csv_path, plot_path, max_error, contact_error, plant_feet, shell_cm, per_clip, quiet):
     """Compress and decompress the clips under INPUTS and report size, ratio, error and speed,
     per clip, per motion class and overall, next to xz -9, zstd -19 and Hou et al. 2015.
 
     Errors are measured end to end: decompressed AMC (or BVH) text read back and run through forward
     kinematics (Hou et al. code joint positions, so theirs are measured on positions): the
-    mean, 99th percentile and max joint error, and foot skate, how much faster (cm/s) the
-    source's planted feet slide once decoded (docs/fidelity.md).
+    mean, 99th percentile and max joint error, mcz's worst vertex by ACL's metric (virtual vertices
+    --shell-cm from every bone, in object space: it sees an end bone's twist, which moves no joint),
+    and foot skate, how much faster (cm/s) the source's planted feet slide once decoded
+    (docs/fidelity.md).
     Several values of -e/-r/-t/-c/--split make a sweep: every combination is one mcz run.
 
     \b
@@ -111,7 +117,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
         transforms=list(transforms) or ["dct"], classes=list(classes) or ["pooled"], splits=_splits(splits),
         codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error,
-        contact_error=contact_error, plant_feet=plant_feet, units=units)
+        contact_error=contact_error, plant_feet=plant_feet, units=units, shell_cm=shell_cm)
     report = bench_module.run_bench(options)
     if json_path:
         _write(json_path, json.dumps(report, indent=1) + "\n")

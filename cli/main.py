@@ -7,6 +7,7 @@ archive, I/O failure: one line on stderr, never a traceback) and 2 (usage).
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from collections import Counter
@@ -23,7 +24,7 @@ from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNIT
                                   max_error_value)
 from mocapzip.cli.errors import reports_errors
 from mocapzip.cluster import LOCAL_WORKERS_PER_CORE, ClusterError, parse_address
-from mocapzip.defaults import DEFAULT_CACHE_MB, DEFAULT_FPS
+from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_CACHE_MB, DEFAULT_FPS
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -472,9 +473,14 @@ def _clip_table(clips: list[dict], names: list[str]) -> None:
 @main.command("test")
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
 @jobs_option("decoding the clips", "Threads (worker processes for a lossless archive)")
+@click.option("--against", type=click.Path(exists=True, file_okay=False), metavar="DIR",
+              help="The folder the archive was compressed from: also print each clip's worst vertex by ACL's "
+                   "metric against its source file there (docs/fidelity.md), beside its joint errors.")
+@click.option("--shell-cm", type=click.FloatRange(min=0), default=ACL_SHELL_CM, show_default=True, metavar="CM",
+              help="With --against: the distance of ACL's virtual vertices from every bone.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @reports_errors
-def test_archive(archive_path, jobs, quiet):
+def test_archive(archive_path, jobs, against, shell_cm, quiet):
     """Verify ARCHIVE without writing anything: every checksum, every clip decoded (like zstd -t)."""
     with importing():
         from mocapzip import archive
@@ -484,8 +490,31 @@ def test_archive(archive_path, jobs, quiet):
     with archive.Archive(archive_path) as opened:
         opened.verify(jobs)
         count = len(opened.clips)
+    if against:
+        _shell_table(archive_path, against, shell_cm)
     if not quiet:
         click.echo(f"{archive_path}: OK ({_count(count, 'clip')})", err=True)
+
+
+def _shell_table(archive_path: str, source_folder: str, shell_cm: float) -> None:
+    """One line per clip: the joint errors compress measured and the worst vertex measured now
+    against the clip's file under `source_folder`, its bone and frame."""
+    with importing():
+        import mocapzip
+        from mocapzip.progress import progress
+
+    with mocapzip.open(archive_path) as opened:
+        missing = [path for path in opened.paths if not os.path.isfile(os.path.join(source_folder, path))]
+        if missing:  # before the table: not half of one
+            raise FileNotFoundError(errno.ENOENT, "No such file or directory", os.path.join(source_folder, missing[0]))
+        width = max([len(path) for path in opened.paths] + [4])
+        click.echo(f"{'clip':<{width}}  {'mean cm':>8}  {'p99 cm':>8}  {'max cm':>8}  {'vertex cm':>9}  "
+                   f"worst vertex (ACL's metric, {shell_cm:g} cm shell)")
+        for clip in progress(opened, desc="vertices", unit="clip", total=len(opened)):
+            shell = clip.shell_error(os.path.join(source_folder, clip.path), shell_cm)
+            p99 = f"{clip.error.p99_cm:>8.3f}" if clip.error.p99_cm is not None else f"{'-':>8}"
+            click.echo(f"{clip.path:<{width}}  {clip.error.mean_cm:>8.3f}  {p99}  {clip.error.max_cm:>8.3f}  "
+                       f"{shell.worst:>9.3f}  {shell.worst_bone}, frame {shell.worst_frame}")
 
 
 @main.command()

@@ -26,19 +26,20 @@ import numpy as np
 
 from mocapzip.archive import reader, settings, writer
 from mocapzip.archive.settings import SettingsError
-from mocapzip.defaults import MAX_TO_MEAN
+from mocapzip.defaults import ACL_SHELL_CM, MAX_TO_MEAN
 from mocapzip.formats.amc import Motion, parse_amc, read_amc, write_amc
 from mocapzip.formats.asf import Skeleton, parse_asf, read_asf, write_asf
 from mocapzip.formats.bvh import Bvh, BvhJoint, parse_bvh, read_bvh, write_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError
-from mocapzip.motion.bvh_skeleton import file_positions, point_names
-from mocapzip.motion.kinematics import forward
+from mocapzip.motion.bvh_skeleton import bvh_skeleton, file_positions, point_names
+from mocapzip.motion.kinematics import Pose, forward
+from mocapzip.motion.metrics import ShellError, shell_errors
 from mocapzip.motion.skeleton import SkeletonModel
 
 __all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError",
-           "bvh_joint_positions", "bvh_point_names", "compress", "decompress", "joint_positions", "read_amc",
-           "read_asf", "read_bvh", "write_amc", "write_asf", "write_bvh"]
+           "ShellError", "bvh_joint_positions", "bvh_point_names", "compress", "decompress", "joint_positions",
+           "read_amc", "read_asf", "read_bvh", "write_amc", "write_asf", "write_bvh"]
 # also `open`, left out of __all__ so that `from mocapzip import *` does not hide the built-in
 
 
@@ -144,6 +145,34 @@ class Clip:
         if self.format == "bvh":
             return bvh_joint_positions(self.bvh, self._units)
         return joint_positions(self.skeleton, self.motion)
+
+    def shell_error(self, source: str | os.PathLike | Motion | Bvh, shell_cm: float = ACL_SHELL_CM) -> ShellError:
+        """ACL's error of this clip against its `source` (docs/acl.md): per frame and bone, the
+        worst of three virtual vertices `shell_cm` from the bone along its axes, in object space, in
+        cm (`worst`, `per_bone`, `per_frame`, `worst_bone`, `worst_frame`; the bones in `names`). It
+        sees what `error` does not: an end bone's twist, which moves no joint. `source`: the file
+        the clip was compressed from (an AMC is read against this clip's ASF, the one it was
+        compressed with), or that file already read (a `Motion`, a `Bvh`). MocapFormatError if it
+        cannot be read, or is not this clip's (its frames or joints differ)."""
+        if isinstance(source, (str, os.PathLike)):
+            source = read_bvh(source) if self.format == "bvh" else read_amc(source, self.skeleton)
+        model, decoded = self._posed(self.bvh if self.format == "bvh" else self.motion)
+        _, original = self._posed(source)
+        (frames, joints), (own_frames, own_joints) = original.positions.shape[:2], decoded.positions.shape[:2]
+        if (frames, joints) != (own_frames, own_joints):
+            raise MocapFormatError(f"{frames} frames of {joints} joints, the archive's {self.path} has {own_frames} "
+                                   f"of {own_joints}: not its source", source.path)
+        return shell_errors(model, original, decoded, shell_cm)
+
+    def _posed(self, clip_file: Motion | Bvh) -> tuple[SkeletonModel, Pose]:
+        """The model of this clip's skeleton and `clip_file` posed on it by forward kinematics (a
+        BVH file's lengths in the archive's units)."""
+        if isinstance(clip_file, Bvh):
+            skeleton = bvh_skeleton(clip_file.joints, self._units, clip_file.path)
+            model, motion = skeleton.model, skeleton.motion(clip_file, lossless=False)
+        else:
+            model, motion = SkeletonModel.from_asf(self.skeleton), clip_file
+        return model, forward(model, motion.values, motion)
 
     def _only(self, kind: str, what: str) -> None:
         if self.format != kind:

@@ -8,6 +8,9 @@ MAX_TO_MEAN = 10.0
 DEFAULT_FPS = 120.0
 # the environment variables that set BLAS thread counts (OpenBLAS, OpenMP, MKL): mcz's processes want one
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+# ACL's default shell distance (`track_desc_transformf::shell_distance`, 3 in the clip's units;
+# Unreal Engine's are cm): its error metric's vertices stand for a skinned mesh's, 3 cm from the bone
+ACL_SHELL_CM = 3.0
 UNITS_CM = {"cm": 1.0, "mm": 0.1, "m": 100.0, "in": 2.54}  # BVH length units (`--units`) -> cm
 # memory (MB) for clips kept between compress's passes (`inputs.clip.ClipReader`): the shared CMU set
 # (143,495 frames) holds 535 MB; at 512 some of its clips were read again, 5 % of compress's time

@@ -110,6 +110,47 @@ def test_a_lossless_archive_reports_zero_error_and_exact_values(shared_data):
         assert np.array_equal(clip.channels, source.values)
 
 
+def test_shell_error_against_the_source_is_made_of_its_joint_and_shell_parts(shared_data):
+    # A vertex s cm along a bone's axis moves by d + s a (d: the bone origin's move, a: its axis's).
+    # At s = 0 the worst is the worst joint: every joint is some bone's origin. And as
+    # |d + 2 s a| <= 2 |d + s a| + |d|, each bone's error at 6 cm is bounded by those at 3 and 0.
+    with mocapzip.open(GOLDEN_LOSSY) as archive:
+        for clip in archive:
+            path = shared_data / "cmu" / clip.path.split("_")[0] / clip.path
+            shell, joints, double = (clip.shell_error(path, shell_cm) for shell_cm in (3.0, 0.0, 6.0))
+            assert shell.errors.shape == (clip.frames, len(clip.joint_names) + 7)  # 7 end bones: toes, head, hands
+            assert abs(joints.worst - clip.error.max_cm) < 1e-5
+            assert np.all(double.errors <= 2 * shell.errors + joints.errors + 1e-9)
+            assert np.array_equal(clip.shell_error(mocapzip.read_amc(path, clip.skeleton)).errors, shell.errors)
+        with pytest.raises(mocapzip.MocapFormatError,
+                           match="09_01.amc: 148 frames of 31 joints, the archive's 64_01.amc has 448 of 31: not its"):
+            archive["64_01.amc"].shell_error(shared_data / "cmu" / "09" / "09_01.amc")
+    with mocapzip.open(GOLDEN_LOSSY.with_name("lossless_v1.mcz")) as archive:
+        clip = archive[0]
+        assert clip.shell_error(shared_data / "cmu" / "09" / clip.path.split("/")[-1]).worst == 0.0
+
+
+def test_mcz_test_against_the_source_folder_prints_each_clips_worst_vertex(shared_data, tmp_path):
+    for name in ("09_01.amc", "64_01.amc"):  # the golden archive's clips, compressed from one folder
+        (tmp_path / name).symlink_to(shared_data / "cmu" / name[:2] / name)
+    result = CliRunner().invoke(main, ["test", str(GOLDEN_LOSSY), "--against", str(tmp_path), "-q"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert "worst vertex (ACL's metric, 3 cm shell)" in lines[0]
+    with mocapzip.open(GOLDEN_LOSSY) as archive:
+        for line, clip in zip(lines[1:], archive, strict=True):
+            shell = clip.shell_error(tmp_path / clip.path)
+            assert line.split()[:5] == [clip.path, f"{clip.error.mean_cm:.3f}", f"{clip.error.p99_cm:.3f}",
+                                        f"{clip.error.max_cm:.3f}", f"{shell.worst:.3f}"]
+            assert line.endswith(f"{shell.worst_bone}, frame {shell.worst_frame}")
+    result = CliRunner().invoke(main, ["test", str(GOLDEN_LOSSY), "--against", str(tmp_path), "--shell-cm", "0", "-q"])
+    for line in result.output.splitlines()[1:]:  # no shell: the worst vertex is the worst joint
+        assert line.split()[3] == line.split()[4]
+    (tmp_path / "64_01.amc").unlink()
+    result = CliRunner().invoke(main, ["test", str(GOLDEN_LOSSY), "--against", str(tmp_path), "-q"])
+    assert result.exit_code == 1 and "64_01.amc: No such file" in result.output
+
+
 @pytest.mark.parametrize("options, message", [
     ({"error_cm": 2.0}, "give error_cm as error="),
     ({"max_error": "none"}, "max_error must be a number of cm or None"),

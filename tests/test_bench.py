@@ -105,6 +105,23 @@ def test_mcz_keeps_its_error_promise_end_to_end(report):
     assert "every joint <= 10 cm" in run["label"]
 
 
+def test_mcz_reports_the_worst_vertex_by_acls_metric(report):
+    assert report["shell_cm"] == 3.0
+    run = run_of(report, "mcz")
+    for row in run["clips"]:
+        # vertices 3 cm off every bone: a turn of the bone moves them, so the worst is above 0, and no
+        # vertex moves more than its frame's origin (a joint) plus the 6 cm a half turn carries it
+        assert 0 < row["shell_error_cm"] <= row["max_error_cm"] + 6
+        assert isinstance(row["shell_worst_bone"], str)
+    assert run["overall"]["shell_error_cm"] == max(r["shell_error_cm"] for r in run["clips"])
+    assert run["classes"]["walk"]["shell_error_cm"] == run["overall"]["shell_error_cm"]
+    assert run_of(report, "xz")["overall"]["shell_error_cm"] == 0
+    assert run_of(report, "hou")["overall"]["shell_error_cm"] is None  # positions only: no bone turns to see
+    assert "vertex: worst vertex, cm (ACL's metric, 3 cm shell)" in report["_stdout"]
+    rows = list(csv.DictReader(io.StringIO(report["_csv"])))
+    assert float(next(r for r in rows if r["codec"] == "mcz")["shell_error_cm"]) > 0
+
+
 def test_xz_is_lossless_and_its_bytes_are_xz_minus_9(report, clips, shared_data):
     run = run_of(report, "xz")
     skeleton = lzma.compress((shared_data / "cmu" / "07" / "07.asf").read_bytes(), preset=9)
@@ -152,7 +169,7 @@ def test_csv_and_text(report):
 def test_no_pca_emulation_and_split(clips, tmp_path):
     out = tmp_path / "r.json"
     result = CliRunner().invoke(bench, [str(clips[0]), "-e", "1", "-r", "channels", "-c", "none", "--split", "0,0,1",
-                                        "--codec", "mcz", "--json", str(out), "-q"])
+                                        "--codec", "mcz", "--shell-cm", "0", "--json", str(out), "-q"])
     assert result.exit_code == 0, result.output
     (run,) = json.loads(out.read_text())["runs"]
     assert run["settings"]["classes"] == "none" and run["settings"]["split"] == [0, 0, 1]
@@ -160,6 +177,8 @@ def test_no_pca_emulation_and_split(clips, tmp_path):
     (row,) = run["clips"]
     assert 0 < row["mean_error_cm"] <= 1.0
     assert row["bytes"] == row["payload_bytes"] == row["pose_bytes"]  # channels: no separate root track
+    # at no shell distance the vertices are the bones' origins, and every joint is one: the worst joint
+    assert row["shell_error_cm"] == pytest.approx(row["max_error_cm"], rel=1e-12)
 
 
 def test_bad_options(clips):

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from mocapzip.archive.reader import Archive
+from mocapzip.defaults import ACL_SHELL_CM
 from mocapzip.formats.asf import parse_asf, read_asf
 from mocapzip.formats.amc import read_amc
 from mocapzip.motion.kinematics import Pose, forward
 from mocapzip.motion.metrics import (
-    ACL_SHELL_CM,
     SKIN_RADIUS,
     bytes_per_frame,
     frame_errors,

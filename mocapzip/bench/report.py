@@ -10,7 +10,7 @@ from mocapzip.formats.errors import MocapFormatError
 
 CSV_COLUMNS = ["run", "codec", "label", "target_error_cm", "level", "name", "clips", "frames", "bytes", "payload_bytes",
                "bytes_per_frame", "payload_bytes_per_frame", "ratio_amc", "ratio_f32_channels", "ratio_f32_positions",
-               "mean_error_cm", "p99_error_cm", "max_error_cm", "skin_error", "foot_skate_cm_s", "encode_fps", "decode_fps",
+               "mean_error_cm", "p99_error_cm", "max_error_cm", "shell_error_cm", "skin_error", "foot_skate_cm_s", "encode_fps", "decode_fps",
                "encode_peak_rss_mb", "decode_peak_rss_mb", "hou_L", "hou_k", "hou_Q"]
 
 
@@ -41,7 +41,7 @@ def format_text(report: dict, per_clip: bool = False) -> str:
     """The terminal report: per run, overall and per class (and per clip on request)."""
     lines = []
     head = (f"{'':<22} {'clips':>5} {'frames':>8} {'B/frame':>8} {'payload':>8} {'xAMC':>7} {'xf32ch':>7} "
-            f"{'xf32pos':>7} {'mean cm':>8} {'p99 cm':>7} {'max cm':>7} {'skin':>7} {'skate':>7}")
+            f"{'xf32pos':>7} {'mean cm':>8} {'p99 cm':>7} {'max cm':>7} {'vertex':>7} {'skin':>7} {'skate':>7}")
     for run in report["runs"]:
         lines.append("")
         lines.append(f"== {run['label']}")
@@ -65,6 +65,9 @@ def format_text(report: dict, per_clip: bool = False) -> str:
                          + f"; {total:,} B, {total / run['archive_bytes']:.1%} of the archive, "
                            f"{total / o['frames']:.2f} bytes/frame")
         lines.append("   errors measured on: " + run["error_measured_on"])
+        if o.get("shell_error_cm") is not None:
+            lines.append(f"   vertex: worst vertex, cm (ACL's metric, {report['shell_cm']:g} cm shell); "
+                         "mean, p99, max: joint error, cm")
         lines.append(head)
         lines.append(_text_row("overall", o))
         for name, summary in run["classes"].items():
@@ -97,11 +100,12 @@ def format_text(report: dict, per_clip: bool = False) -> str:
 def _text_row(name: str, s: dict) -> str:
     skin = f"{s['skin_error']:>7.2f}" if s.get("skin_error") is not None else f"{'-':>7}"
     skate = f"{s['foot_skate_cm_s']:>7.2f}" if s.get("foot_skate_cm_s") is not None else f"{'-':>7}"
+    vertex = f"{s['shell_error_cm']:>7.2f}" if s.get("shell_error_cm") is not None else f"{'-':>7}"
     name = name if len(name) <= 22 else name[:21] + "…"
     return (f"{name:<22} {s.get('clips', 1):>5} {s['frames']:>8} {s['bytes_per_frame']:>8.2f} "
             f"{s['payload_bytes_per_frame']:>8.2f} {s['ratio_amc']:>7.0f} {s['ratio_f32_channels']:>7.1f} "
             f"{s['ratio_f32_positions']:>7.1f} {s['mean_error_cm']:>8.3f} {s['p99_error_cm']:>7.2f} "
-            f"{s['max_error_cm']:>7.2f} {skin} {skate}")
+            f"{s['max_error_cm']:>7.2f} {vertex} {skin} {skate}")
 
 
 def plot(report: dict, path) -> None:

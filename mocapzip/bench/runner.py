@@ -21,6 +21,10 @@ What is measured, and how (the same text goes into every JSON report under "rule
   kinematics of the original and of the decoded clip (Hou et al. eq. 11); mean over
   joints and frames, 99th percentile and maximum over every joint of every frame.
   Skin error: thesis eq. 3.1 on the faux mesh (`mocapzip.motion.metrics.skin_error`).
+  Worst vertex (mcz): ACL's error metric, the worst distance of any virtual vertex a shell
+  distance (`--shell-cm`, 3 cm as ACL) from any bone, in any frame, in object space
+  (`mocapzip.motion.metrics.shell_errors`, docs/acl.md); it sees an end bone's twist, which
+  moves no joint. Hou et al. store no rotations (none); lossless codecs 0.
 * Speed: frames / seconds. Encode: from AMC files on disk to compressed bytes on disk;
   decode: from compressed bytes to AMC files on disk (mcz, xz, zstd). Hou et al.
   decode to joint positions in memory (the codec has no AMC output); its encode time
@@ -64,7 +68,7 @@ import numpy as np
 from mocapzip import __version__
 from mocapzip.classes.by_name import read_class_table
 from mocapzip.cli.choices import contact_error_cm, max_error_cm
-from mocapzip.defaults import BLAS_THREAD_VARIABLES, DEFAULT_FPS
+from mocapzip.defaults import ACL_SHELL_CM, BLAS_THREAD_VARIABLES, DEFAULT_FPS
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import ClipSource, find_clips, no_clips
 from mocapzip.progress import progress
@@ -100,6 +104,7 @@ class BenchOptions:
     plant_feet: bool = False  # --plant-feet: the decoder holds planted feet still (codec.foot_lock)
     hou_grid: dict | None = None  # override of hou.GRID_L/K/Q (tests, quick runs)
     units: str | None = None  # --units: of BVH lengths, where they cannot be inferred
+    shell_cm: float = ACL_SHELL_CM  # --shell-cm: the shell distance of the worst-vertex error (ACL's metric)
     quiet: bool = False
     command: str | None = None  # how the run was invoked (default: the equivalent `mcz bench` command)
 
@@ -165,6 +170,7 @@ def run_bench(options: BenchOptions) -> dict:
         "environment": _environment(load_start),
         "inputs": [os.fspath(p) for p in options.inputs],
         "rules": RULES,
+        "shell_cm": options.shell_cm,
         "clips": [{"path": c.path, "group": c.group, "frames": c.frames, "amc_bytes": c.amc_bytes,
                    "channels": c.channels, "joints": c.joints} for c in clips],
         "runs": runs,
@@ -251,10 +257,11 @@ def _original(clip: Clip, reader):
     return read.model, read.motion, forward(read.model, read.motion.values, read.motion)
 
 
-def _measure(clip: Clip, reader, decoded_model, decoded_motion) -> tuple[dict, np.ndarray]:
-    """Errors of a decoded clip (a Motion read back from the text written) against the original."""
+def _measure(clip: Clip, reader, decoded_model, decoded_motion, shell_cm: float) -> tuple[dict, np.ndarray]:
+    """Errors of a decoded clip (a Motion read back from the text written) against the original;
+    the worst vertex at `shell_cm` from every bone (ACL's metric) beside the joint errors."""
     from mocapzip.motion.kinematics import forward
-    from mocapzip.motion.metrics import joint_distances, skin_error
+    from mocapzip.motion.metrics import joint_distances, shell_errors, skin_error
 
     model, motion, pose = _original(clip, reader)
     if decoded_motion.n_frames != motion.n_frames or decoded_motion.values.shape[1] != motion.values.shape[1]:
@@ -262,7 +269,9 @@ def _measure(clip: Clip, reader, decoded_model, decoded_motion) -> tuple[dict, n
                          clip.source.motion)
     decoded_pose = forward(decoded_model, decoded_motion.values, decoded_motion)
     d = joint_distances(pose.positions, decoded_pose.positions)
-    return ({**_error_stats(d), "skin_error": skin_error(model, pose, decoded_pose),
+    shell = shell_errors(model, pose, decoded_pose, shell_cm)
+    return ({**_error_stats(d), "shell_error_cm": shell.worst, "shell_worst_bone": shell.worst_bone,
+             "skin_error": skin_error(model, pose, decoded_pose),
              **_skate(model, pose.positions, decoded_pose.positions, clip.fps)}, d.astype(np.float32))
 
 
@@ -459,7 +468,7 @@ def _run_mcz(task: dict, clips: list[Clip], reader, options: BenchOptions, tmp: 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             read_back = reader.motion(ClipSource(written, skeleton_file, r["path"]))
-        errors, distances[clip.path] = _measure(clip, reader, read_back.model, read_back.motion)
+        errors, distances[clip.path] = _measure(clip, reader, read_back.model, read_back.motion, options.shell_cm)
         basis_share = class_bytes[r["class"]] * r["frames"] / class_frames[r["class"]]
         rows.append({**_sizes(clip, share, clip_streams[i]), **parts[i], "basis_bytes": basis_share, **errors,
                      "codec_reported_error_cm": r.get("error_cm")})
@@ -570,7 +579,8 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], reader, options: BenchOp
                 decoded = parse_amc(text.encode("latin-1", "replace"), clip.path)
         else:  # the numbers as a BVH file writes them
             decoded = replace(m, values=loaded.as_written(values))
-        errors, distances[clip.path] = _measure(clip, reader, reader.skeleton(clip.source).model, decoded)
+        errors, distances[clip.path] = _measure(clip, reader, reader.skeleton(clip.source).model, decoded,
+                                                options.shell_cm)
         rows.append({**_sizes(clip, len(payload), len(payload)), **_payload_parts(payload, "context", None), "basis_bytes": 0, **errors})
     settings = {"error_cm": task["error_cm"], "representation": task["representation"],
                 "transform": _transform_config(task["transform"], options.wavelet), "classes": NO_PCA,
@@ -610,7 +620,7 @@ def _run_lossless(codec: str, clips: list[Clip], options: BenchOptions, tmp: Pat
     for c, size in zip(clips, sizes):
         share = size + skeleton_bytes.get(c.source.skeleton, 0) * c.frames / frames_per_skeleton[c.source.skeleton]
         rows.append({**_sizes(c, share, size), "mean_error_cm": 0.0, "p99_error_cm": 0.0, "max_error_cm": 0.0,
-                     "skin_error": 0.0, "foot_skate_cm_s": 0.0, "contact_frames": 1})
+                     "shell_error_cm": 0.0, "skin_error": 0.0, "foot_skate_cm_s": 0.0, "contact_frames": 1})
     shutil_rmtree(work)
     name = {"xz": f"xz -{XZ_PRESET}", "zstd": f"zstd -{ZSTD_LEVEL}"}[codec]
     return _finish_run({"codec": codec, "label": f"{name} (lossless, per file)", "target_error_cm": 0.0,
@@ -656,7 +666,7 @@ def _run_hou(targets: list[float], clips: list[Clip], reader, options: BenchOpti
             encode_seconds += middle - start
             d = np.linalg.norm(decoded - positions, axis=-1)
             distances[clip.path] = d.astype(np.float32)
-            rows.append({**_sizes(clip, len(blob), len(blob)), **_error_stats(d), "skin_error": None,
+            rows.append({**_sizes(clip, len(blob), len(blob)), **_error_stats(d), "shell_error_cm": None, "skin_error": None,
                          **_skate(reader.skeleton(clip.source).model, positions, decoded, clip.fps), "hou": params.as_dict()})
         run = _finish_run({"codec": "hou", "label": f"Hou et al. 2015, best (L, k, Q) per clip for mean error <= {t:g} cm",
                            "target_error_cm": t,
@@ -706,7 +716,7 @@ def _run_hou_shared(targets: list[float], clips: list[Clip], reader, options: Be
                 d = np.linalg.norm(back - original, axis=-1)
                 distances[t][clip.path] = d.astype(np.float32)
                 share = len(stream) + len(basis_blob) * clip.frames / group_frames
-                rows[t].append({**_sizes(clip, share, len(stream)), **_error_stats(d), "skin_error": None,
+                rows[t].append({**_sizes(clip, share, len(stream)), **_error_stats(d), "shell_error_cm": None, "skin_error": None,
                                 **_skate(reader.skeleton(clip.source).model, original, back, clip.fps),
                                 "basis_bytes": len(basis_blob) * clip.frames / group_frames,
                                 "hou": {"L": choice["L"], "k": choice["k"], "Q": x["Q"]}})
@@ -761,6 +771,8 @@ def _summary(rows: list[dict], clips: list[Clip], distances: dict | None) -> dic
     else:
         out["p99_error_cm"] = max(r["p99_error_cm"] for r in rows)
     out["max_error_cm"] = max(r["max_error_cm"] for r in rows)
+    shells = [r.get("shell_error_cm") for r in rows]
+    out["shell_error_cm"] = max(shells) if all(s is not None for s in shells) else None
     contact = [r.get("contact_frames", 0) for r in rows]
     if sum(contact) and all("foot_skate_cm_s" in r for r in rows):
         out["foot_skate_cm_s"] = float(np.dot([r["foot_skate_cm_s"] for r in rows], contact) / sum(contact))
@@ -866,6 +878,8 @@ def command_line(options: BenchOptions) -> str:
             args += [flag, "none" if bound == "none" else f"{bound:g}"]
     if options.plant_feet:
         args.append("--plant-feet")
+    if options.shell_cm != ACL_SHELL_CM:
+        args += ["--shell-cm", f"{options.shell_cm:g}"]
     if "dwt" in options.transforms and options.wavelet != "db4":
         args += ["--wavelet", options.wavelet]
     for flag, value in (("--groups", options.groups), ("--asf", options.asf)):

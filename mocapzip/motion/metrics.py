@@ -15,12 +15,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mocapzip.defaults import ACL_SHELL_CM
 from mocapzip.motion.kinematics import Pose
 from mocapzip.motion.skeleton import SkeletonModel
 
-# ACL's default shell distance (`track_desc_transformf::shell_distance`, 3 in the clip's units;
-# Unreal Engine's are cm): its vertices stand for a skinned mesh's, 3 cm from the bone.
-ACL_SHELL_CM = 3.0
 
 # Faux mesh: the four side vertices of each bone's octahedron sit this fraction of
 # the bone's length away from its midpoint.
