@@ -66,7 +66,8 @@ from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_FPS  # noqa: E402
 from mocapzip.formats.amc import read_amc, write_amc  # noqa: E402
 from mocapzip.formats.bvh import read_bvh, write_bvh  # noqa: E402
 from mocapzip.inputs.clip import ClipReader  # noqa: E402
-from mocapzip.inputs.discover import ClipSource, find_clips, is_bvh  # noqa: E402
+from mocapzip.inputs.discover import ClipSource, find_clips  # noqa: E402
+from mocapzip.inputs.registry import BVH  # noqa: E402
 from mocapzip.motion.kinematics import Pose, forward  # noqa: E402
 from mocapzip.motion.metrics import joint_distances, shell_bones, shell_frames, shell_vertex_errors  # noqa: E402
 from mocapzip.motion.skeleton import SkeletonModel  # noqa: E402
@@ -135,13 +136,13 @@ def write_inputs(clips: list[ClipSource], data: Path, step: int, folder: Path) -
     for source in clips:
         target = folder / source.relpath
         target.parent.mkdir(parents=True, exist_ok=True)
-        if is_bvh(source.amc.name):
-            bvh = read_bvh(source.amc)
+        if source.format is BVH:
+            bvh = read_bvh(source.motion)
             write_bvh(dataclasses.replace(bvh, values=bvh.values[::step], frame_time=bvh.frame_time * step,
                                           frames_text=None), target)
             continue
-        shutil.copyfile(source.asf, folder / source.asf.relative_to(data))
-        motion = read_amc(source.amc)
+        shutil.copyfile(source.skeleton, folder / source.skeleton.relative_to(data))
+        motion = read_amc(source.motion)
         kept = motion.values[::step]
         write_amc(dataclasses.replace(motion, values=kept, frame_numbers=np.arange(1, len(kept) + 1)), target,
                   style=motion.style)
