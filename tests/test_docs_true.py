@@ -7,6 +7,8 @@ all read as true and are not; these checks catch them when the tree changes, not
 """
 
 import ast
+import importlib.util
+import os
 import re
 import subprocess
 from pathlib import Path
@@ -126,3 +128,17 @@ def test_pyproject_names_only_paths_that_exist():
     assert {"mocapzip/parallel.py", ".ci/run", "formats/", "README.md"} <= paths, "the pattern is broken"
     missing = sorted(p for p in paths if not (ROOT / p).exists())
     assert not missing, f"pyproject.toml names {missing}, which do not exist"
+
+
+BENCHMARKS = sorted((ROOT / "benchmarks").glob("*.py"))
+
+
+@pytest.mark.parametrize("path", BENCHMARKS, ids=lambda p: p.name)
+def test_every_benchmark_imports(path, monkeypatch):
+    """Docs quote numbers from these scripts: a rename in the package must not leave one that no
+    longer runs (benchmarks/acl.py once imported a helper the input-format registry removed)."""
+    monkeypatch.syspath_prepend(str(path.parent))
+    for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        monkeypatch.setenv(variable, os.environ.get(variable, "1"))  # some set them at import
+    spec = importlib.util.spec_from_file_location(f"benchmark_{path.stem}", path)
+    spec.loader.exec_module(importlib.util.module_from_spec(spec))
