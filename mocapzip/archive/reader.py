@@ -15,7 +15,7 @@ import functools
 import os
 import threading
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import closing
 from pathlib import Path, PurePosixPath
 
@@ -36,7 +36,7 @@ from mocapzip.codec.entropy.zstd import decode_bytes, unpack_blobs
 from mocapzip.codec.foot_lock import Stances, hold
 from mocapzip.codec.lossless import decode_channels
 from mocapzip.codec.patches import FramePatches, channel_steps
-from mocapzip.formats.amc import AmcStyle, Motion, format_amc
+from mocapzip.formats.amc import AmcStyle, Motion, amc_blocks
 from mocapzip.formats.asf import parse_asf
 from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
@@ -208,7 +208,7 @@ class Archive:
                     if "tensor_at" in row:  # --model tensor: the stream coded what the class's model misses
                         name = f"warp/{index:05d}"
                         poses = poses + self._prediction(row, self._reader.read(name), poses.shape[1])
-                if not np.all(np.abs(poses) <= MAX_ABS_POSE):  # an overflowing model or basis, or NaN
+                if not in_value_range(poses, MAX_ABS_POSE):  # an overflowing model or basis, or NaN
                     raise ValueError(f"decoded poses beyond +-{MAX_ABS_POSE:g}, or not numbers")
                 twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
                 tail = self._decode_tail(row["skeleton"], layout)
@@ -233,20 +233,28 @@ class Archive:
         return Motion(row["bones"], row["counts"], values, frames, row["header"], row["path"], AmcStyle(**row["style"]))
 
     def file_bytes(self, kind: str, index: int) -> bytes:
-        """The bytes `decompress` writes for an entry of `files`: ("amc", clip) or ("asf", skeleton).
+        """The bytes `decompress` writes for an entry of `files`: ("amc", clip) or ("asf", skeleton)."""
+        return b"".join(self.file_blocks(kind, index))
+
+    def file_blocks(self, kind: str, index: int) -> Iterator[bytes]:
+        """`file_bytes` in blocks of whole frames (`amc_blocks`, `BvhStyle.blocks`), made as they
+        are asked for: a clip at the size limits (100 MB of text) is never one string.
 
         An AMC that mcz could not read back (values it refuses) is an error here, not a file.
         """
         if kind == "asf":
-            return self.skeleton_text(index).encode("latin-1")
+            yield self.skeleton_text(index).encode("latin-1")
+            return
         row = self.clips[index]
         if "bvh" in row:
-            return self._bvh_file(index)
+            yield from self._bvh_blocks(index)
+            return
         motion = self.decode(index)
         self._check_range(index, motion.values)
-        return format_amc(motion).encode(motion.style.encoding)
+        for text in amc_blocks(motion):
+            yield text.encode(motion.style.encoding)
 
-    def _bvh_file(self, index: int) -> bytes:
+    def _bvh_blocks(self, index: int) -> Iterator[bytes]:
         """A BVH clip's file: its hierarchy, MOTION lines and frames (docs/format.md, "Decoding a BVH clip")."""
         row, k = self.clips[index], self.clips[index]["skeleton"]
         if self.settings.lossless:  # the values as the file had them: no model needed
@@ -261,9 +269,11 @@ class Archive:
         if not self.settings.lossless:
             values = skeleton.file_values(values, self._extra_root(index, skeleton))
         self._check_range(index, values)
-        text = self.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
         encoding = self.meta["skeletons"][k]["encoding"]
-        return text + (row["bvh"]["motion"] + BvhStyle(**row["bvh"]["style"]).format(values)).encode(encoding)
+        yield self.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
+        yield row["bvh"]["motion"].encode(encoding)
+        for text in BvhStyle(**row["bvh"]["style"]).blocks(values):
+            yield text.encode(encoding)
 
     def _check_range(self, index: int, values: np.ndarray) -> None:
         """ArchiveError for a value no reader would take back: NaN, or beyond +-MAX_ABS_VALUE."""
@@ -408,10 +418,11 @@ class Archive:
                 pass
 
     def made_files(self, entries: list[tuple[str, int]], jobs: int = 1, keep: bool = True):
-        """`file_bytes` of each (kind, index) of `entries`, in order, made by `jobs` threads, or
-        worker processes for a lossless archive (None each if not `keep`: only checked). A few
-        files ahead of the one yielded are made at once (FILES_AHEAD per job), never all of
-        them; the first that fails raises at its turn. Close the generator if you may stop early."""
+        """`file_blocks` of each (kind, index) of `entries` as a list, in order, made by `jobs` threads,
+        or worker processes for a lossless archive (None each if not `keep`: only checked, each block
+        dropped once made). A few files ahead of the one yielded are made at once (FILES_AHEAD per
+        job), never all of them; the first that fails raises at its turn. Close the generator if you
+        may stop early."""
         if self.settings.lossless:
             yield from self._made_in_processes(entries, jobs, keep)
             return
@@ -425,9 +436,8 @@ class Archive:
             except ArchiveError:
                 pass  # raised again at its first clip's turn, after the files before it
 
-        def made(entry: tuple[str, int]) -> bytes | None:
-            data = self.file_bytes(*entry)
-            return data if keep else None
+        def made(entry: tuple[str, int]) -> list[bytes] | None:
+            return _kept(self.file_blocks(*entry), keep)
 
         yield from thread_imap(made, entries, jobs, FILES_AHEAD * jobs)
 
@@ -439,7 +449,7 @@ class Archive:
         _SHARED["archive"] = self
         clips = [entry for entry in entries if entry[0] == "amc"]
         if jobs > 1 and len(clips) > 1:  # decode one clip here first: numba loads its kernels once, before the
-            self.file_bytes(*clips[0])  # fork, not once in each worker (about a second each)
+            _kept(self.file_blocks(*clips[0]), False)  # fork, not once in each worker (about a second each)
         try:
             yield from imap(_made_file if keep else _checked_file, entries, jobs, FILES_AHEAD * jobs)
         finally:
@@ -479,8 +489,8 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
         entries = list(targets.items())
         with progress(total=len(entries), desc="decompress", unit="file") as bar, \
                 closing(archive.made_files([entry for _, entry in entries], jobs)) as made:
-            for (path, (kind, index)), data in zip(entries, made):
-                write_file_atomically(path, data)
+            for (path, (kind, index)), blocks in zip(entries, made):
+                write_file_atomically(path, *blocks)
                 frames += archive.clips[index]["frames"] if kind == "amc" else 0
                 bar.update()
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
@@ -491,12 +501,21 @@ FILES_AHEAD = 2  # files made ahead of the one being written, per job: enough to
 _SHARED: dict = {}  # the archive the forked workers decode from (`Archive._made_in_processes`)
 
 
-def _made_file(entry: tuple[str, int]) -> bytes:
-    return _SHARED["archive"].file_bytes(*entry)
+def _kept(blocks: Iterator[bytes], keep: bool) -> list[bytes] | None:
+    """A file's blocks (`Archive.file_blocks`), all of them, or (not `keep`) each dropped once made."""
+    if keep:
+        return list(blocks)
+    for _ in blocks:
+        pass
+    return None
+
+
+def _made_file(entry: tuple[str, int]) -> list[bytes]:
+    return _kept(_SHARED["archive"].file_blocks(*entry), True)
 
 
 def _checked_file(entry: tuple[str, int]) -> None:
-    _SHARED["archive"].file_bytes(*entry)
+    _kept(_SHARED["archive"].file_blocks(*entry), False)
 
 
 def info(archive_path) -> dict:
