@@ -1,4 +1,5 @@
-"""How every `mcz` command fails: one line on stderr and exit code 1, never a traceback."""
+"""How every `mcz` command fails: one line on stderr, never a traceback; exit code 1 for bad input
+(`reports_errors`), 2 for a usage error (`UsageInOneLine`)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import signal
 import sys
 import threading
 import warnings
+from contextlib import contextmanager
 from concurrent.futures.process import BrokenProcessPool
 
 import click
@@ -18,11 +20,60 @@ from mocapzip.cluster import ClusterError
 from mocapzip.formats.errors import MocapFormatError
 
 
+def _one_line(message: str) -> str:
+    """The message in one line, whatever it holds: a name from a file may carry line breaks."""
+    return message.encode("unicode_escape", "backslashreplace").decode("ascii") if not message.isprintable() else message
+
+
 def _fail(message: str) -> None:
-    """One line, whatever the message holds: a name from a file may carry line breaks."""
-    one_line = message.encode("unicode_escape", "backslashreplace").decode("ascii") if not message.isprintable() else message
-    click.echo(f"mcz: error: {one_line}", err=True)
+    click.echo(f"mcz: error: {_one_line(message)}", err=True)
     sys.exit(1)
+
+
+class _UsageLine(click.UsageError):
+    """A usage error shown in one line, naming the command and its help, instead of click's usage,
+    hint and message in three or four: `mcz compress: Missing option '-o' / '--output' (see mcz
+    compress --help)`."""
+
+    def __init__(self, message: str, command: str):
+        super().__init__(message)
+        self.command = command
+
+    def show(self, file=None) -> None:
+        message = _one_line(self.format_message().removesuffix("."))
+        click.echo(f"{self.command}: {message} (see {self.command} --help)", err=True)
+
+
+class UsageInOneLine(click.Group):
+    """The `mcz` group: every usage error, exit code 2, as one line (`_UsageLine`). Those of the
+    group itself (an unknown option or command) arise while its context is made or it resolves the
+    command; a command's own (a missing or bad option or argument, a UsageError it raises) while it
+    invokes the command. `mcz` alone still prints the help. The program is named by the group's
+    name, also where it runs as `python -c` (click would call it `-c`)."""
+
+    def main(self, args=None, prog_name=None, **extra):
+        return super().main(args, prog_name or self.name, **extra)
+
+    def make_context(self, info_name, args, parent=None, **extra):
+        with _usage_in_one_line(lambda: info_name):
+            return super().make_context(info_name, args, parent, **extra)
+
+    def invoke(self, ctx):
+        # click leaves some errors without their context (`-e` as the last word: "Option '-e'
+        # requires an argument"): the command they belong to is the one being invoked.
+        with _usage_in_one_line(lambda: " ".join(filter(None, [ctx.command_path, ctx.invoked_subcommand]))):
+            return super().invoke(ctx)
+
+
+@contextmanager
+def _usage_in_one_line(command_path):
+    """Usage errors raised inside as `_UsageLine`s, naming their context's command, else `command_path()`."""
+    try:
+        yield
+    except click.exceptions.NoArgsIsHelpError:
+        raise
+    except click.UsageError as exc:
+        raise _UsageLine(exc.format_message(), exc.ctx.command_path if exc.ctx else command_path()) from None
 
 
 def _stdout_reader_gone() -> bool:

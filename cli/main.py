@@ -2,7 +2,8 @@
 
 Conventions follow zstd: `-o` names the output, inputs are kept, nothing is
 overwritten without `-f`, and exit codes are 0 (success), 1 (bad input, damaged
-archive, I/O failure: one line on stderr, never a traceback) and 2 (usage).
+archive, I/O failure: one line on stderr, never a traceback) and 2 (usage: one line
+naming the command and its --help, `cli/errors.py`).
 """
 
 from __future__ import annotations
@@ -22,12 +23,12 @@ from mocapzip.cli.bench import bench
 from mocapzip.cli.classify import classify
 from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, contact_error_cm, max_error_cm,
                                   max_error_value)
-from mocapzip.cli.errors import reports_errors
+from mocapzip.cli.errors import UsageInOneLine, reports_errors
 from mocapzip.cluster import LOCAL_WORKERS_PER_CORE, ClusterError, parse_address
 from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_CACHE_MB, DEFAULT_FPS
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.group("mcz", cls=UsageInOneLine, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "-V", "--version", prog_name="mcz")
 def main():
     """mcz: compress motion-capture databases (Acclaim ASF/AMC, BVH) into one .mcz archive.

@@ -32,7 +32,7 @@ written back with 6 significant digits and 3-digit exponents, Vicon Blade files 
 decimals, so values come back without loss; every file of the shared data set except the
 truncated golf_01.amc comes back byte for byte (line ends, header and spacing included).
 Numbers are written in compiled code (`amc_compiled.format_frames`), exactly as Python's `%`
-operator writes them.
+operator writes them, a block of frames at a time (`amc_blocks`).
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -49,6 +50,7 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import (
     MAX_ABS_VALUE,
     NUMBER,
+    VALUES_PER_BLOCK,
     WHITESPACE,
     check_text,
     detect_encoding,
@@ -70,7 +72,7 @@ from mocapzip.formats.numbers_compiled import (
     with_numbers,
 )
 
-__all__ = ["AmcStyle", "Motion", "read_amc", "parse_amc", "format_amc", "write_amc"]
+__all__ = ["AmcStyle", "Motion", "read_amc", "parse_amc", "format_amc", "amc_blocks", "write_amc"]
 
 _MAX_FAST_BONES = 255  # first frames with more bones take the exact path
 MAX_FRAME_NUMBER = 10**9  # larger frame numbers are refused (a day at 10 kHz is below 1e9)
@@ -576,6 +578,13 @@ def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | N
     significant digits (`%.<digits>g`). The text is exactly what Python's `%` operator gives
     (`amc_compiled.format_frames` writes it; the numbers it leaves are formatted here).
     """
+    return "".join(amc_blocks(motion, digits, style=style))
+
+
+def amc_blocks(motion: Motion, digits: int | None = None, *, style: AmcStyle | None = None) -> Iterator[str]:
+    """`format_amc`'s text in pieces: the header, then blocks of whole frames of at most
+    `VALUES_PER_BLOCK` values. A writer that writes each piece, or drops it, never holds a long
+    clip's text whole: at the size limits made at once, it took 330 MB more than the values."""
     style = style or getattr(motion, "style", None) or AmcStyle()
     if digits is not None:
         style = replace(style, notation="g", digits=int(digits))
@@ -593,22 +602,23 @@ def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | N
         raise ValueError("cannot write non-finite values to an AMC file")
 
     nl = style.newline
-    head = "".join(line + (style.header_newline or nl) for line in motion.header)
     names = [_widen_exponents(bone, style).encode("utf-8", "surrogatepass") for bone in motion.bones]
+    tables = (np.frombuffer(b"".join(names), np.uint8), np.cumsum([len(name) for name in names], dtype=np.int64),
+              np.array(motion.counts, dtype=np.int64), np.frombuffer(style.name_separator.encode(), np.uint8),
+              np.frombuffer(nl.encode(), np.uint8), np.frombuffer((style.frame_newline or nl).encode(), np.uint8),
+              style.notation == "f", int(style.digits), max(2, style.exponent_digits))
     frames = frames.astype(np.float64)  # '%d' of a float64, as frame numbers were always written
-    text, hard = format_frames(
-        values,
-        frames,
-        np.frombuffer(b"".join(names), np.uint8),
-        np.cumsum([len(name) for name in names], dtype=np.int64),
-        np.array(motion.counts, dtype=np.int64),
-        np.frombuffer(style.name_separator.encode(), np.uint8),
-        np.frombuffer(nl.encode(), np.uint8),
-        np.frombuffer((style.frame_newline or nl).encode(), np.uint8),
-        style.notation == "f",
-        int(style.digits),
-        max(2, style.exponent_digits),
-    )
+    per_block = max(1, VALUES_PER_BLOCK // max(values.shape[1], 1))
+    text = "".join(line + (style.header_newline or nl) for line in motion.header)
+    for first in range(0, n_frames, per_block):
+        yield text
+        text = _frame_lines(values[first : first + per_block], frames[first : first + per_block], tables, style)
+    yield text if style.final_newline else text.removesuffix(nl)
+
+
+def _frame_lines(values: np.ndarray, frames: np.ndarray, tables: tuple, style: AmcStyle) -> str:
+    """The lines of these frames (`amc_blocks`' `tables`: the bone names and the style as arrays)."""
+    text, hard = format_frames(values, frames, *tables)
     per_row = values.shape[1] + 1
 
     def number(item: int) -> str:  # a number format_frames left, as Python's % writes it
@@ -616,10 +626,7 @@ def format_amc(motion: Motion, digits: int | None = None, *, style: AmcStyle | N
         text = "%d" % float(frames[row]) if column == 0 else style.number_format % float(values[row, column - 1])
         return _widen_exponents(text, style)
 
-    text = head + with_numbers(text.tobytes(), hard, number).decode("utf-8", "surrogatepass")
-    if not style.final_newline and text.endswith(nl):
-        text = text[: -len(nl)]
-    return text
+    return with_numbers(text.tobytes(), hard, number).decode("utf-8", "surrogatepass")
 
 
 _EXPONENT = re.compile(r"(?<=[0-9.])e([+-])([0-9]+)(?![0-9])")

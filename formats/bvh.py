@@ -21,7 +21,7 @@ from __future__ import annotations
 import itertools
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,8 +29,9 @@ import numpy as np
 from mocapzip.formats.bvh_compiled import format_rows, scan_lines
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.numbers_compiled import with_numbers
-from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, check_text, detect_encoding, number,
-                                   open_regular_file, read_regular_file, split_lines, whole_number)
+from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, VALUES_PER_BLOCK, check_text,
+                                   detect_encoding, number, open_regular_file, read_regular_file, split_lines,
+                                   whole_number)
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP
 
 CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
@@ -74,18 +75,29 @@ class BvhStyle:
     def format(self, values: np.ndarray) -> str:
         """The frame lines of `values` (frames, channels), in this style: "g" and "f" numbers in
         compiled code (`bvh_compiled.format_rows`, the numbers it leaves and "repr" in Python)."""
+        return "".join(self.blocks(values))
+
+    def blocks(self, values: np.ndarray) -> Iterator[str]:
+        """`format`'s text in blocks of whole frames of at most `VALUES_PER_BLOCK` values: a writer
+        that writes each, or drops it, never holds a long clip's text whole."""
         width = values.shape[1] if values.ndim == 2 else 0
         ending = self.trailing + self.line_end
+        per_block = max(1, VALUES_PER_BLOCK // max(width, 1))
+        for first in range(0, values.shape[0], per_block):
+            text = self._rows(values[first : first + per_block], ending)
+            if first + per_block >= values.shape[0] and not self.final_line_end:  # the last frame has no line end
+                text = text[: len(text) - len(self.line_end)]
+            yield text
+        yield self.after
+
+    def _rows(self, values: np.ndarray, ending: str) -> str:
+        width = values.shape[1] if values.ndim == 2 else 0
         if width == 0:
-            text = ending * values.shape[0]
-        elif self.number == "repr":
+            return ending * values.shape[0]
+        if self.number == "repr":
             texts = [repr(v) for v in values.ravel().tolist()]
-            text = "".join(self.separator.join(texts[i : i + width]) + ending for i in range(0, len(texts), width))
-        else:
-            text = self._compiled_rows(np.ascontiguousarray(values, dtype=np.float64), ending)
-        if values.shape[0] and not self.final_line_end:
-            text = text[: len(text) - len(self.line_end)]
-        return text + self.after
+            return "".join(self.separator.join(texts[i : i + width]) + ending for i in range(0, len(texts), width))
+        return self._compiled_rows(np.ascontiguousarray(values, dtype=np.float64), ending)
 
     def _compiled_rows(self, values: np.ndarray, ending: str) -> str:
         spec, flat = f".{int(self.number[1:])}{self.number[0]}", values.ravel()

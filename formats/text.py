@@ -30,9 +30,16 @@ MAX_ABS_VALUE = 1e9
 """Largest accepted magnitude of any number in an ASF or AMC file (limits may be +-inf)."""
 
 
-def in_value_range(values) -> bool:
-    """Whether every one of `values` is a number a reader takes back: not NaN, within +-MAX_ABS_VALUE."""
-    return bool(np.all(np.abs(values) <= MAX_ABS_VALUE))
+VALUES_PER_BLOCK = 1 << 18
+"""Values a writer turns into text at once (whole frames, at least one): a clip's file is made in
+blocks of about 3 MB (CMU: 4,228 frames), so that a clip at the size limits (100 MB of AMC text)
+is never a single string, nor one being made (`amc.amc_blocks`, `bvh.BvhStyle.blocks`)."""
+
+
+def in_value_range(values, bound: float = MAX_ABS_VALUE) -> bool:
+    """Whether every one of `values` is a number a reader takes back: not NaN, within +-`bound`.
+    Their largest and smallest say it (a NaN is both), with no temporary array of their size."""
+    return bool(np.max(values, initial=-np.inf) <= bound and np.min(values, initial=np.inf) >= -bound)
 
 NUMBER = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
 WHITESPACE = b" \t\r\n\x0b\x0c"  # what bytes.split() splits on
@@ -91,9 +98,9 @@ def check_folders(folders) -> None:
                 raise MocapFormatError(f"not a folder but {kind}: files cannot be written under it", path)
 
 
-def write_file_atomically(path: Path, data: bytes) -> None:
-    """A new file under a random name, created exclusively (never through a link planted there),
-    then renamed over `path`: an interrupted run never leaves half a file behind; an error names `path`."""
+def write_file_atomically(path: Path, *blocks: bytes) -> None:
+    """A new file of `blocks` under a random name, created exclusively (never through a link planted
+    there), then renamed over `path`: an interrupted run never leaves half a file behind; an error names `path`."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".mcz-{secrets.token_hex(8)}.tmp")
     try:
@@ -102,9 +109,10 @@ def write_file_atomically(path: Path, data: bytes) -> None:
         raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
     try:
         try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(fd, view):]
+            for block in blocks:
+                view = memoryview(block)
+                while view:
+                    view = view[os.write(fd, view):]
         finally:
             os.close(fd)
         os.replace(tmp, path)

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from mocapzip.formats import bvh as bvh_module
 from mocapzip.formats.bvh import (MAX_HIERARCHY_CHARS, NUMBER_STYLES, Bvh, BvhStyle, format_bvh, parse_bvh, read_bvh,
                                   read_hierarchy)
 from mocapzip.formats.errors import MocapFormatError
@@ -108,6 +109,21 @@ def test_a_bad_frame_is_named_by_its_line(shared_data):
         with pytest.raises(MocapFormatError, match=message) as caught:
             parse_bvh(b"\n".join(bad), "10_03.bvh")
         assert caught.value.line == first + 3
+
+
+@pytest.mark.parametrize("rel", ["cmu-bvh/10/10_03.bvh", "bvh-bandai/dataset-1_bow_active_001.bvh"])
+@pytest.mark.parametrize("ends", [{}, {"final_line_end": False, "after": "\n\n"}])
+def test_frames_made_a_few_at_a_time_are_the_same(shared_data, monkeypatch, rel, ends):
+    """`BvhStyle.blocks`, as decompress writes a long clip: blocks of 3 frames give the frame
+    lines made at once (the file's, in its own style)."""
+    read = read_bvh(shared_data / rel)
+    style = replace(read.style, **ends)
+    whole = style.format(read.values)
+    assert whole == read.frames_text or ends
+    monkeypatch.setattr(bvh_module, "VALUES_PER_BLOCK", 3 * read.values.shape[1])
+    blocks = list(style.blocks(read.values))
+    assert len(blocks) == -(-read.n_frames // 3) + 1  # the frames, then what follows them
+    assert "".join(blocks) == whole
 
 
 def test_line_ends_and_styles_a_first_frame_does_not_show(shared_data):

@@ -48,8 +48,55 @@ def test_an_empty_output_is_a_usage_error(tmp_path, monkeypatch, shared_data, co
     source = GOLDEN_LOSSY if command == "decompress" else shared_data / "cmu-bvh/10/10_03.bvh"
     result = run(command, source, "-o", "")
     assert result.exit_code == 2
-    assert f"Error: Invalid value for '-o' / '--output': an empty name names no {what}; name one\n" in result.stderr
+    assert result.stderr == (f"mcz {command}: Invalid value for '-o' / '--output': an empty name names no {what}; "
+                             f"name one (see mcz {command} --help)\n")
     assert list(tmp_path.iterdir()) == []
+
+
+GOLDEN_ARGUMENT = os.fspath(GOLDEN_LOSSY)
+USAGE_ERRORS = [  # (arguments, what the one line says): click's own checks, and the commands' own refusals
+    (["compress", "x.amc"], "mcz compress: Missing option '-o' / '--output'"),
+    (["compress", "x.amc", "-o", "x.mcz", "-e", "-1"], "mcz compress: Invalid value for '-e' / '--error': -1.0 is not in the range x>0"),
+    (["compress", "x.amc", "-o", "x.mcz", "-e", "abc"], "mcz compress: Invalid value for '-e' / '--error': 'abc' is not a valid float range"),
+    (["compress", "x.amc", "-o", "x.mcz", "-e"], "mcz compress: Option '-e' requires an argument"),  # click gives it no context
+    (["compress", "x.amc", "-o", "x.mcz", "--knot-spacing", "5"], "mcz compress: --knot-spacing is for --transform poly, not dct"),
+    (["compress", "x.amc", "-o", "x.mcz", "--split", "1,2"],
+     "mcz compress: Invalid value for --split: expected three non-negative shares R,P,T, e.g. 0.2,0.4,0.4"),
+    (["compress"], "mcz compress: Missing argument 'INPUTS...'"),
+    (["decompress"], "mcz decompress: Missing argument 'ARCHIVE'"),
+    (["decompress", GOLDEN_ARGUMENT, "-o", "out", "--bogus"], "mcz decompress: No such option '--bogus'. Did you mean '--jobs'?"),
+    (["info", "-j", "2", GOLDEN_ARGUMENT], "mcz info: No such option '-j'"),
+    (["test", "-j", "0", GOLDEN_ARGUMENT], "mcz test: Invalid value for '-j' / '--jobs': 0 is not in the range x>=1"),
+    (["inspect", "x.bvh", "--units", "furlongs"],
+     "mcz inspect: Invalid value for '--units': 'furlongs' is not one of 'cm', 'mm', 'm', 'in'"),
+    (["convert", "x.bvh"], "mcz convert: Missing option '-o' / '--output'"),
+    (["bench", "x.amc", "--codec", "gzip"], "mcz bench: Invalid value for --codec: 'gzip': choose from mcz, hou, hou-shared, xz, zstd"),
+    (["classify", "--train", "labels.csv", "a.amc"], "mcz classify: Missing option '--test'"),
+    (["classify", "--train", "labels.csv", "a.amc", "--test", "b.amc", "--threshold", "abc"],
+     "mcz classify: Invalid value for --threshold: expected 'auto' or a number (a log density)"),
+    (["bogus"], "mcz: No such command 'bogus'"),
+    (["--bogus"], "mcz: No such option '--bogus'"),
+]
+
+
+@pytest.mark.parametrize("arguments, said", USAGE_ERRORS, ids=[" ".join(a) for a, _ in USAGE_ERRORS])
+def test_a_usage_error_is_one_line_naming_the_command_and_its_help(tmp_path, monkeypatch, arguments, said):
+    """click printed a usage error in three or four lines (usage, a hint, a blank line, the error)."""
+    monkeypatch.chdir(tmp_path)
+    result = run(*arguments)
+    assert result.exit_code == 2
+    command = said.split(":")[0]
+    assert result.stderr == f"{said} (see {command} --help)\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_every_command_has_its_usage_error_tested():
+    assert {arguments[0] for arguments, _ in USAGE_ERRORS} >= set(main.commands)
+
+
+def test_mcz_alone_still_prints_the_help():
+    result = run()
+    assert result.exit_code == 2 and "Run `mcz COMMAND --help`" in result.stderr
 
 
 @pytest.mark.parametrize("command, in_the_way", [("decompress", "dangling link"), ("convert", "dangling link"),
@@ -87,7 +134,7 @@ def test_lossy_only_options_refused_with_lossless(tmp_path, option):
     result = run("compress", tmp_path / "x.amc", "-o", tmp_path / "db.mcz", "--lossless", *option)
     assert result.exit_code == 2
     name = {"-e": "--error", "-r": "--representation", "-t": "--transform"}.get(option[0], option[0])
-    assert f"Error: {name} has no meaning with --lossless" in result.stderr
+    assert result.stderr.startswith(f"mcz compress: {name} has no meaning with --lossless")
     assert not (tmp_path / "db.mcz").exists()
 
 

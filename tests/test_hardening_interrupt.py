@@ -100,7 +100,7 @@ setattr(owner, "{name}".split(".")[-1], held)
 main(prog_name="mcz")
 """
 CODING_CHILD = HELD_CHILD.format(module="mocapzip.ratecontrol.encode", name="code_clip")  # a clip's coding
-DECODING_CHILD = HELD_CHILD.format(module="mocapzip.archive.reader", name="Archive.file_bytes")  # a file's decoding
+DECODING_CHILD = HELD_CHILD.format(module="mocapzip.archive.reader", name="Archive.file_blocks")  # a file's decoding
 
 
 def start(args: list, env: dict | None = None) -> subprocess.Popen:

@@ -43,8 +43,8 @@ def chan_folder(shared_data, tmp_path):
         motion = Motion(bones, counts, values, np.arange(1, len(values) + 1), path=str(source.motion))
         return SourceMotion(skeleton.skeleton, skeleton.model, motion, None, "deg", values.shape[1])
 
-    def write(archive, index):
-        return chan_text(archive.decode(index).values)
+    def write(archive, index):  # the file in blocks: here one
+        return [chan_text(archive.decode(index).values)]
 
     # the whole format: its name and suffix, its skeleton's text (an ASF, read as an AMC's), reader, writer
     register(InputFormat("chan", (".chan",), lambda path: asf, AMC.read_skeleton, read, write))

@@ -14,7 +14,7 @@ import functools
 import os
 import threading
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import closing
 from pathlib import Path, PurePosixPath
 
@@ -223,13 +223,19 @@ class Archive:
 
     def file_bytes(self, kind: str, index: int) -> bytes:
         """The bytes `decompress` writes for an entry of `files`: ("motion", clip), as the clip's
-        format writes it (`registry.InputFormat.write`), or ("skeleton", skeleton).
+        format writes it (`registry.InputFormat.write`), or ("skeleton", skeleton)."""
+        return b"".join(self.file_blocks(kind, index))
+
+    def file_blocks(self, kind: str, index: int) -> Iterator[bytes]:
+        """`file_bytes` in blocks of whole frames, made as they are asked for: a clip at the size
+        limits (100 MB of text) is never one string.
 
         A clip that mcz could not read back (values it refuses) is an error here, not a file.
         """
         if kind == "skeleton":
-            return self.skeleton_text(index).encode("latin-1")
-        return self.clip_format(index).write(self, index)
+            yield self.skeleton_text(index).encode("latin-1")
+            return
+        yield from self.clip_format(index).write(self, index)
 
     def clip_format(self, index: int) -> InputFormat:
         """The input format of clip `index`: its skeleton's (`registry.stored_format`, checked by `meta.validate`)."""
@@ -366,10 +372,11 @@ class Archive:
                 pass
 
     def made_files(self, entries: list[tuple[str, int]], jobs: int = 1, keep: bool = True):
-        """`file_bytes` of each (kind, index) of `entries`, in order, made by `jobs` threads, or
-        worker processes for a lossless archive (None each if not `keep`: only checked). A few
-        files ahead of the one yielded are made at once (FILES_AHEAD per job), never all of
-        them; the first that fails raises at its turn. Close the generator if you may stop early."""
+        """`file_blocks` of each (kind, index) of `entries` as a list, in order, made by `jobs` threads,
+        or worker processes for a lossless archive (None each if not `keep`: only checked, each block
+        dropped once made). A few files ahead of the one yielded are made at once (FILES_AHEAD per
+        job), never all of them; the first that fails raises at its turn. Close the generator if you
+        may stop early."""
         if self.settings.lossless:
             yield from self._made_in_processes(entries, jobs, keep)
             return
@@ -383,9 +390,8 @@ class Archive:
             except ArchiveError:
                 pass  # raised again at its first clip's turn, after the files before it
 
-        def made(entry: tuple[str, int]) -> bytes | None:
-            data = self.file_bytes(*entry)
-            return data if keep else None
+        def made(entry: tuple[str, int]) -> list[bytes] | None:
+            return _kept(self.file_blocks(*entry), keep)
 
         yield from thread_imap(made, entries, jobs, FILES_AHEAD * jobs)
 
@@ -397,7 +403,7 @@ class Archive:
         _SHARED["archive"] = self
         clips = [entry for entry in entries if entry[0] == "motion"]
         if jobs > 1 and len(clips) > 1:  # decode one clip here first: numba loads its kernels once, before the
-            self.file_bytes(*clips[0])  # fork, not once in each worker (about a second each)
+            _kept(self.file_blocks(*clips[0]), False)  # fork, not once in each worker (about a second each)
         try:
             yield from imap(_made_file if keep else _checked_file, entries, jobs, FILES_AHEAD * jobs)
         finally:
@@ -437,8 +443,8 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
         entries = list(targets.items())
         with progress(total=len(entries), desc="decompress", unit="file") as bar, \
                 closing(archive.made_files([entry for _, entry in entries], jobs)) as made:
-            for (path, (kind, index)), data in zip(entries, made):
-                write_file_atomically(path, data)
+            for (path, (kind, index)), blocks in zip(entries, made):
+                write_file_atomically(path, *blocks)
                 frames += archive.clips[index]["frames"] if kind == "motion" else 0
                 bar.update()
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
@@ -449,12 +455,21 @@ FILES_AHEAD = 2  # files made ahead of the one being written, per job: enough to
 _SHARED: dict = {}  # the archive the forked workers decode from (`Archive._made_in_processes`)
 
 
-def _made_file(entry: tuple[str, int]) -> bytes:
-    return _SHARED["archive"].file_bytes(*entry)
+def _kept(blocks: Iterator[bytes], keep: bool) -> list[bytes] | None:
+    """A file's blocks (`Archive.file_blocks`), all of them, or (not `keep`) each dropped once made."""
+    if keep:
+        return list(blocks)
+    for _ in blocks:
+        pass
+    return None
+
+
+def _made_file(entry: tuple[str, int]) -> list[bytes]:
+    return _kept(_SHARED["archive"].file_blocks(*entry), True)
 
 
 def _checked_file(entry: tuple[str, int]) -> None:
-    _SHARED["archive"].file_bytes(*entry)
+    _kept(_SHARED["archive"].file_blocks(*entry), False)
 
 
 def info(archive_path) -> dict:

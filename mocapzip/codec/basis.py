@@ -97,7 +97,9 @@ class ClassBasis:
         return np.linalg.pinv(self.components).T
 
     def reconstruct(self, coefficients: np.ndarray) -> np.ndarray:
-        return self.mean + coefficients @ self.components.T
+        poses = coefficients @ self.components.T
+        poses += self.mean  # in place: `mean + product` made a second array of a long clip's largest size
+        return poses
 
 
 def read_header(blob: bytes) -> tuple[int, int, np.ndarray, int]:

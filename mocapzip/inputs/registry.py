@@ -20,13 +20,13 @@ root kept exactly) has defaults that do nothing.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from mocapzip.formats.amc import format_amc, read_amc
+from mocapzip.formats.amc import amc_blocks, read_amc
 from mocapzip.formats.asf import Skeleton, parse_asf
 from mocapzip.formats.bvh import BvhStyle, motion_lines_problem, parse_hierarchy, read_bvh, read_hierarchy, split_header
 from mocapzip.formats.errors import MocapFormatError
@@ -89,7 +89,9 @@ class InputFormat:
     read_skeleton: Callable[[bytes, str, str | None, bool], SourceSkeleton]
     # (clip, its skeleton or None, lossless) -> SourceMotion; MocapFormatError or OSError if it cannot be read
     read: Callable[[ClipSource, SourceSkeleton | None, bool], SourceMotion]
-    write: Callable[[Archive, int], bytes]  # (archive, clip index) -> the clip's file, as decompress writes it
+    # (archive, clip index) -> the clip's file as decompress writes it, in blocks of whole frames: a clip
+    # at the size limits (100 MB of text) is never one string
+    write: Callable[[Archive, int], Iterable[bytes]]
     # its clips pair with skeleton files of this suffix (an AMC with an .asf); None: a clip's file holds its skeleton
     skeleton_suffix: str | None = None
     skeleton_kind: str = "skeleton"  # what messages call one of its skeletons
@@ -186,10 +188,11 @@ def _read_amc(source: ClipSource, skeleton: SourceSkeleton | None, lossless: boo
                         None if model is None else model.layout(motion).angle_unit, motion.values.shape[1], asf)
 
 
-def _write_amc(archive: Archive, index: int) -> bytes:
+def _write_amc(archive: Archive, index: int) -> Iterator[bytes]:
     motion = archive.decode(index)
     archive.check_range(index, motion.values)
-    return format_amc(motion).encode(motion.style.encoding)
+    for text in amc_blocks(motion):
+        yield text.encode(motion.style.encoding)
 
 
 def _check_amc_row(row: dict, index: int, fail) -> list[str]:
@@ -280,7 +283,7 @@ def _stored_hierarchy(text: bytes, entry: dict, lossless: bool) -> tuple[BvhSkel
     return skeleton, skeleton.model
 
 
-def _write_bvh(archive: Archive, index: int) -> bytes:
+def _write_bvh(archive: Archive, index: int) -> Iterator[bytes]:
     """A BVH clip's file: its hierarchy, MOTION lines and frames (docs/format.md, "Decoding a BVH clip")."""
     row, k = archive.clips[index], archive.clips[index]["skeleton"]
     skeleton = archive.stored_skeleton(k)[0]
@@ -298,9 +301,11 @@ def _write_bvh(archive: Archive, index: int) -> bytes:
             extra_root = archive.extra_root(index, len(skeleton.above))
         values = skeleton.file_values(values, extra_root)
     archive.check_range(index, values)
-    text = archive.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
     encoding = archive.meta["skeletons"][k]["encoding"]
-    return text + (row["bvh"]["motion"] + BvhStyle(**row["bvh"]["style"]).format(values)).encode(encoding)
+    yield archive.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
+    yield row["bvh"]["motion"].encode(encoding)
+    for text in BvhStyle(**row["bvh"]["style"]).blocks(values):
+        yield text.encode(encoding)
 
 
 def _check_bvh_row(row: dict, index: int, fail) -> list[str]:
