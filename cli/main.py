@@ -255,7 +255,8 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
                    "the workers run the same mcz, numpy and numba as here.")
 @click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 @click.option("--skip-bad", is_flag=True,
-              help="Leave out clips that cannot be read (listed on stderr, in --json and in the archive) "
+              help="Leave out clips that cannot be read, or that no coding holds within -e and the bounds "
+                   "(listed on stderr, in --json and in the archive; the archive is as if they were never given) "
                    "instead of stopping; fails only if no clip is left.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
 @click.option("-v", "--verbose", is_flag=True,
