@@ -91,6 +91,17 @@ def check_folders(folders) -> None:
                 raise MocapFormatError(f"not a folder but {kind}: files cannot be written under it", path)
 
 
+def check_inside(root, paths) -> None:
+    """MocapFormatError naming the first of `paths` whose folder resolves outside the folder `root`
+    through a symbolic link already there (`root` itself may be one): a link planted in an output
+    folder would take the files written under it anywhere on disk. Checked before any file is written."""
+    top = os.path.realpath(root)
+    for path in paths:
+        if os.path.commonpath([top, os.path.realpath(Path(path).parent)]) != top:
+            raise MocapFormatError("its folder leads outside the output folder through a symbolic link; "
+                                   "refusing to write it", path)
+
+
 def write_file_atomically(path: Path, data: bytes) -> None:
     """A new file under a random name, created exclusively (never through a link planted there),
     then renamed over `path`: an interrupted run never leaves half a file behind; an error names `path`."""

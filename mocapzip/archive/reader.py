@@ -41,7 +41,8 @@ from mocapzip.formats.asf import parse_asf
 from mocapzip.formats.bvh import BvhJoint, BvhStyle, parse_hierarchy
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader
-from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, in_value_range, write_file_atomically
+from mocapzip.formats.text import (MAX_ABS_VALUE, check_folders, check_inside, in_value_range,
+                                   write_file_atomically)
 from mocapzip.limits import MAX_ABS_POSE, MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
@@ -471,11 +472,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
         folders = {PurePosixPath(archive.clips[i]["path"]).parent for i in chosen}
         targets = {out.joinpath(*path.split("/")): (kind, index) for path, (kind, index) in archive.files.items()
                    if (index in chosen if kind == "amc" else PurePosixPath(path).parent in folders)}
-        root = os.path.realpath(out)
-        for path in targets:
-            if os.path.commonpath([root, os.path.realpath(path.parent)]) != root:
-                raise MocapFormatError("its folder leads outside the output folder through a symbolic link; "
-                                       "refusing to write it", path)
+        check_inside(out, targets)
         check_folders(path.parent for path in targets)
         existing = [p for p in targets if os.path.lexists(p)]
         if existing and not force:
