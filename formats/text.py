@@ -200,9 +200,8 @@ def number(word, path: str | None, line: int | None, *, what: str = "value") -> 
         raise MocapFormatError(f"not a number: {shown!r}", path, line)
     value = float(raw)
     if not abs(value) <= MAX_ABS_VALUE:
-        raise MocapFormatError(
-            f"{what} {raw.decode('latin-1')} is out of range (|v| > {MAX_ABS_VALUE:g})", path, line
-        )
+        shown = raw[:40].decode("latin-1") + ("..." if len(raw) > 40 else "")  # a word of any length: the line's
+        raise MocapFormatError(f"{what} {shown} is out of range (|v| > {MAX_ABS_VALUE:g})", path, line)
     return value
 
 
