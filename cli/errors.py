@@ -104,6 +104,19 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt("SIGTERM")
 
 
+def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (Ctrl-C, or SIGTERM: `_terminate`) among the causes of `exc`, if any:
+    one that arrives while numba's compiled code allocates comes out of its dispatcher as a
+    SystemError ("... returned a result with an exception set") that it caused."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def reports_errors(command):
     """Turn expected failures into one line on stderr and exit code 1.
 
@@ -140,8 +153,12 @@ def reports_errors(command):
             _fail("out of memory; no partial file was left behind")
         except BrokenProcessPool:  # a worker killed (the OOM killer, kill -9): its parent ends cleanly
             _fail("a worker process ended abruptly (killed, or out of memory); no partial file was left behind")
-        except KeyboardInterrupt as exc:
-            _fail(f"interrupted ({exc.args[0] if exc.args else 'SIGINT'}); no partial file was left behind")
+        except (KeyboardInterrupt, SystemError) as exc:
+            interruption = _interruption(exc)
+            if interruption is None:  # a SystemError of its own: a fault of mcz, its traceback shown
+                raise
+            _fail(f"interrupted ({interruption.args[0] if interruption.args else 'SIGINT'}); "
+                  "no partial file was left behind")
         finally:
             if not frozen:
                 gc.unfreeze()  # what `importing` froze: only the exit's collection is spared it (cli/__init__.py)

@@ -6,12 +6,12 @@ line of channel values per frame. Exporters differ in layout: 3 rotation channel
 position channels on the root (CMU's conversion, mixed CRLF/LF line ends), or 6 channels on every
 joint and an extra root above the hips (Bandai Namco's game-studio export), any rotation order.
 
-Strict: every fault raises MocapFormatError naming file and line (a brace missing, a channel
-name that is no channel, CHANNELS after a child joint, a frame line with too few values, `Frames:` 0
-or disagreeing with the lines, a number that is no finite number, a CR CR LF among the MOTION lines
-and frames). Keywords, channel names and MOTION are ASCII words in any case. Exact: a file read
-and written back is the same bytes. A Bvh read from a file keeps its text as read (`header`,
-`frames_text`) and its values read-only; to write other values, make a new one
+Strict: every fault raises MocapFormatError naming file and line (a brace missing, a channel name
+that is no channel, CHANNELS after a child joint, no CHANNELS at all, a frame line with too few
+values, `Frames:` 0 or disagreeing with the lines, a number that is no finite number, a CR CR LF
+among the MOTION lines and frames). Keywords, channel names and MOTION are ASCII words in any case.
+Exact: a file read and written back is the same bytes. A Bvh read from a file keeps its text as
+read (`header`, `frames_text`) and its values read-only; to write other values, make a new one
 (`dataclasses.replace(bvh, values=..., frames_text=None)`): they are written in the number style
 the file used (`BvhStyle`, found on a sample of its frames).
 """
@@ -362,11 +362,14 @@ class _Parser:
     def hierarchy(self) -> list[BvhJoint]:
         self.next("HIERARCHY")
         joints: list[BvhJoint] = []
+        roots = []
         while self.position < len(self.words):
-            self.next("ROOT")
+            roots.append(self.next("ROOT")[1])
             self.joint(joints, -1)
         if not joints:
             raise self.fail("no ROOT joint", self.words[-1][1] if self.words else 1)
+        if not any(joint.channels for joint in joints):  # frames of no values: blank lines, or none
+            raise self.fail("no joint has a CHANNELS line: its frames would hold no values", roots[0])
         return joints
 
     def joint(self, joints: list[BvhJoint], parent: int, depth: int = 1) -> None:

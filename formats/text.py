@@ -98,6 +98,17 @@ def check_folders(folders) -> None:
                 raise MocapFormatError(f"not a folder but {kind}: files cannot be written under it", path)
 
 
+def check_inside(root, paths) -> None:
+    """MocapFormatError naming the first of `paths` whose folder resolves outside the folder `root`
+    through a symbolic link already there (`root` itself may be one): a link planted in an output
+    folder would take the files written under it anywhere on disk. Checked before any file is written."""
+    top = os.path.realpath(root)
+    for path in paths:
+        if os.path.commonpath([top, os.path.realpath(Path(path).parent)]) != top:
+            raise MocapFormatError("its folder leads outside the output folder through a symbolic link; "
+                                   "refusing to write it", path)
+
+
 def write_file_atomically(path: Path, *blocks: bytes) -> None:
     """A new file of `blocks` under a random name, created exclusively (never through a link planted
     there), then renamed over `path`: an interrupted run never leaves half a file behind; an error names `path`."""
@@ -197,9 +208,8 @@ def number(word, path: str | None, line: int | None, *, what: str = "value") -> 
         raise MocapFormatError(f"not a number: {shown!r}", path, line)
     value = float(raw)
     if not abs(value) <= MAX_ABS_VALUE:
-        raise MocapFormatError(
-            f"{what} {raw.decode('latin-1')} is out of range (|v| > {MAX_ABS_VALUE:g})", path, line
-        )
+        shown = raw[:40].decode("latin-1") + ("..." if len(raw) > 40 else "")  # a word of any length: the line's
+        raise MocapFormatError(f"{what} {shown} is out of range (|v| > {MAX_ABS_VALUE:g})", path, line)
     return value
 
 

@@ -54,6 +54,7 @@ CONNECT_TIMEOUT_S = 20  # to reach a scheduler given by address and have its han
 LOCAL_WORKERS_PER_CORE = 4  # `local:N`: at most this many worker processes per core of this machine
 HANDSHAKE_MAX_BYTES = 1 << 16  # a scheduler's first message, its handshake, takes about 60 bytes
 SMALLEST_WINDOW_PER_WORKER = 4  # imap's items in flight per worker, at least: enough to keep each one busy
+ONE_LINE_CHARS = 200  # of an error's message that Dask raised, in mcz's one line
 
 
 class ClusterError(Exception):
@@ -110,15 +111,18 @@ def on_cluster(address: str, dashboard: bool = False):
                 scheduler = local.scheduler_address
             client = distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False)
             client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError, TypeError, MemoryError) as exc:
+        except Exception as exc:  # Dask raises whatever the peer's answers make it: any type, even the peer's own
             for opened in (client, local):
                 if opened is not None:
                     opened.close()
             what = "has no workers" if client is not None else "cannot be reached"
-            message = f"the Dask scheduler at {scheduler} {what} ({type(exc).__name__}: {exc})"
+            message = f"the Dask scheduler at {scheduler} {what} ({_one_line(exc)})"
             if isinstance(exc, MemoryError):  # Dask read a size from the peer's bytes: not Dask's messages
                 message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, bytes Dask read as "
                            "a message size past memory)")
+            elif local is None and not isinstance(exc, (OSError, TimeoutError)):  # answers no scheduler gives
+                message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, Dask read its answers "
+                           f"as {_one_line(exc)})")
             del exc
             gc.collect()  # a Client that failed while it was made is closed now, not during the next one's start
             raise ClusterError(message) from None
@@ -187,6 +191,13 @@ def _check_handshake(address: str, host: str, port: int, timeout: float) -> None
     raise ClusterError(f"--dask {address}: not a Dask scheduler ({why})")
 
 
+def _one_line(exc: BaseException) -> str:
+    """`Type: message`, the message's first line and at most ONE_LINE_CHARS of it: a peer's answer
+    decides what Dask raises, and with what text."""
+    text = str(exc).strip().split("\n")[0]
+    return f"{type(exc).__name__}: {text[:ONE_LINE_CHARS]}{'...' if len(text) > ONE_LINE_CHARS else ''}"
+
+
 def _receive(connection: socket.socket, received: bytearray, size: int, deadline: float) -> None:
     """`received` filled up to `size` bytes from `connection` by `deadline` (TimeoutError), or
     EOFError if the peer closes first."""
@@ -225,13 +236,14 @@ def _handshake(message: bytes) -> dict:
 
 @contextmanager
 def _dask_logs_quiet():
-    """Dask's loggers at CRITICAL for the block: a lost scheduler otherwise prints its traceback
-    (Dask sets some of its loggers' levels itself, so each is set, not only their parent)."""
+    """Dask's loggers above CRITICAL for the block: a lost scheduler otherwise prints its traceback,
+    and so does a message Dask cannot decode, at CRITICAL (Dask sets some of its loggers' levels
+    itself, so each is set, not only their parent)."""
     names = [name for name in logging.root.manager.loggerDict if name.split(".")[0] == "distributed"]
     loggers = [logging.getLogger(name) for name in ["distributed", *names]]
     previous = [logger.level for logger in loggers]
     for logger in loggers:
-        logger.setLevel(logging.CRITICAL)
+        logger.setLevel(logging.CRITICAL + 1)
     try:
         yield
     finally:
@@ -285,8 +297,13 @@ class Cluster:
 
     @property
     def workers(self) -> int:
-        """Worker processes the scheduler has now (each runs one mcz task at a time)."""
-        return max(1, len(self.client.nthreads()))
+        """Worker processes the scheduler has now (each runs one mcz task at a time); ClusterError
+        if it does not say within CONNECT_TIMEOUT_S (Dask itself would wait for ever)."""
+        try:
+            return max(1, len(self.client.nthreads(callback_timeout=CONNECT_TIMEOUT_S)))
+        except Exception as exc:  # a peer that stopped answering, or answers what no scheduler does
+            raise ClusterError(f"the Dask scheduler at {self.client.scheduler.address} did not say how many workers "
+                               f"it has ({_one_line(exc)})") from None
 
     def describe(self) -> str:
         """One line for `-v`: where the work runs, and the dashboard if there is one."""

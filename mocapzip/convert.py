@@ -37,7 +37,8 @@ unwrapped far past 360 keeps its precision), an AMC with 6 significant digits, e
 angles unwrapped to -1,470 degrees, an AMC angle of 12,345.678 degrees, a root 1,234,567.891 cm
 from the origin). Every clip is read and converted before any file is written, each file is
 written whole (`formats.text.write_file_atomically`), into folders that are folders
-(`formats.text.check_folders`); no input is ever written over.
+(`formats.text.check_folders`) and inside the output folder (`formats.text.check_inside`: not through
+a symbolic link there); no input is ever written over.
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from mocapzip.formats.amc import MAX_AMC_BYTES, AmcStyle, Motion, format_amc, pa
 from mocapzip.formats.asf import ROOT, Bone, Skeleton, format_asf, parse_asf
 from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, parse_bvh, read_bvh
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import NUMBER, check_folders, write_file_atomically
+from mocapzip.formats.text import NUMBER, check_folders, check_inside, write_file_atomically
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
 from mocapzip.inputs.discover import find_clips, no_clips, record_skip
 from mocapzip.inputs.registry import AMC, BVH
@@ -228,6 +229,7 @@ def convert(inputs, output, asf=None, units: str | None = None, force: bool = Fa
                 raise MocapFormatError(f"two clips would be written to {target} (also {plans[target].motion})",
                                        source.motion)
             plans[target] = source
+    check_inside(out, (out / target for target in plans))
     check_folders((out / target).parent for target in plans)
     inputs_read = {os.path.realpath(p) for s in sources for p in (s.motion, s.skeleton) if p is not None}
     for target in plans:

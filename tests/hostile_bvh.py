@@ -129,6 +129,12 @@ def _line_ends(hierarchy: str, motion: str, frames: str, last: str) -> str:
 _CHANNELS_AFTER = _channels_after_the_child()
 
 
+def _no_channels(frame_line: str) -> str:
+    """BASE without any CHANNELS line, its 3 frames each `frame_line` (a frame of no values)."""
+    text = "".join(line for line in bvh_text(BASE).splitlines(keepends=True) if "CHANNELS" not in line)
+    return text.split("MOTION")[0] + "MOTION\nFrames: 3\nFrame Time: 0.033333\n" + f"{frame_line}\n" * 3
+
+
 REFUSED = [
     Refused("no_frames", bvh_text(Shape(person(), frames=0)), "no frames: Frames: 0", _MOTION + 1),
     Refused("frames_more_than_lines", bvh_text(Shape(person(), stated=4)), "Frames: says 4, but 3 frame lines follow",
@@ -199,6 +205,13 @@ REFUSED = [
             2 * _MOTION - 1),  # each CR CR LF ends two lines, as editors count
     Refused("cr_cr_lf_between_frames", _line_ends("\n", "\n", "\r\r\n", "\n"), "the line ends in CR CR LF",
             _MOTION + 3),
+    # a hierarchy of no channel: before, "Frames: says 3, but 0 frame lines follow" (its blank frame
+    # lines read as blank lines after the last frame), or that the root needs position channels
+    Refused("no_channels_and_blank_frames", _no_channels(""), "no joint has a CHANNELS line", 2),
+    Refused("no_channels_and_frames_of_blanks", _no_channels("  \t"), "no joint has a CHANNELS line", 2),
+    # a number of any length named in its first 40 characters: the line was as long as the number
+    Refused("offset_of_900_digits", _base_with("OFFSET 0 20 0", "OFFSET 0 " + "9" * 900 + " 0"),
+            f"OFFSET {'9' * 40}... is out of range", 8),
 ]
 
 # Names of every class of character a BVH name (one word) can hold: digits, punctuation, a

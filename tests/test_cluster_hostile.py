@@ -1,8 +1,8 @@
 """`mcz compress --dask` at a peer that is not a Dask scheduler (issue 40): a port that never
-answers, one that answers HTTP, one whose first bytes declare an enormous message, and other
-answers that are no Dask handshake. Each run ends within mcz's connect timeout (1 s in the child)
-with one line, exit code 1 and no file. `--dask local:N` beyond what the machine can start is a
-usage error.
+answers, one that answers HTTP, one whose first bytes declare an enormous message, other
+answers that are no Dask handshake, and a handshake followed by answers no scheduler gives, or
+by silence. Each run ends within mcz's connect timeout (1 s in the child) with one line, exit
+code 1 and no file. `--dask local:N` beyond what the machine can start is a usage error.
 
 Each peer is a thread of the test listening on 127.0.0.1. Nothing depends on how fast anything
 runs: a run that hangs meets the child's timeout (`tests/limited.py`) and fails its test.
@@ -57,19 +57,66 @@ PEERS = {
     # a handshake that passes mcz's check, then what Dask's own connections read as a message's size
     "handshake_then_http": (message(HANDSHAKE) + b"HTTP/1.1 400 Bad Request" + bytes(1000), False),
     "handshake_then_an_exbibyte": (message(HANDSHAKE) + struct.pack("Q", 1 << 60), False),
+    # a handshake, then an answer Dask raises on as no scheduler's: before, a traceback (AssertionError,
+    # the peer's own exception re-raised, struct.error; msgpack's error after Dask's CRITICAL log line)
+    "handshake_then_an_empty_dict": (message(HANDSHAKE) + message(msgpack.packb({})), False),
+    "handshake_then_its_own_exception": (message(HANDSHAKE) + message(msgpack.packb(
+        {"status": "uncaught-error", "exception": "x", "traceback": None, "text": "x"})), False),
+    "handshake_then_a_frame_count_that_lies": (message(HANDSHAKE) + message(msgpack.packb({}), count=1 << 40), False),
+    "handshake_then_no_msgpack": (message(HANDSHAKE) + message(b"\xc1" * 8), False),
 }
 
 
+# A scheduler's answers to the client's start (its identity, claiming a worker; the stream's start),
+# and silence after them.
+SILENT_AFTER_THE_START = {
+    "identity": {"type": "Scheduler", "id": "s", "address": "tcp://127.0.0.1:1", "services": {}, "started": 0.0,
+                 "workers": {"tcp://127.0.0.1:2": {"type": "Worker", "id": "w", "host": "127.0.0.1", "resources": {},
+                                                   "local_directory": "/tmp", "name": "w", "nthreads": 1,
+                                                   "memory_limit": 1 << 30, "last_seen": 0.0, "services": {},
+                                                   "metrics": {}, "status": "running", "nanny": None}}},
+    "register-client": [{"op": "stream-start"}]}
+
+
+def answer_by_op(connection: socket.socket, replies: dict, stop: threading.Event) -> None:
+    """A scheduler's handshake, then to each message received (after the client's handshake) the
+    message `replies` holds for its op (a message's or a list's first), and silence for any other."""
+    connection.sendall(message(HANDSHAKE))
+    connection.settimeout(0.1)
+    received, handshaken = b"", False
+    while not stop.is_set():
+        try:
+            chunk = connection.recv(1 << 16)
+        except TimeoutError:
+            continue
+        if not chunk:
+            return
+        received += chunk
+        while len(received) >= 8 and len(received) >= 8 + struct.unpack_from("Q", received)[0]:
+            size = struct.unpack_from("Q", received)[0]
+            body, received = received[8:8 + size], received[8 + size:]
+            if handshaken:
+                (count,) = struct.unpack_from("Q", body)
+                first = msgpack.unpackb(body[8 + 8 * count:8 + 8 * count + struct.unpack_from("Q", body, 8)[0]])
+                op = (first[0] if isinstance(first, list) else first).get("op")
+                if op in replies:
+                    connection.sendall(message(msgpack.packb(replies[op])))
+            handshaken = True
+
+
 @contextmanager
-def peer(answer: bytes | None, close: bool):
+def peer(answer: bytes | dict | None, close: bool):
     """A listener on 127.0.0.1 that sends `answer` on each connection it accepts (None: trickles a
-    message that never ends), then closes it or holds it open until the block ends. Yields its address."""
+    message that never ends; a dict: `answer_by_op`), then closes it or holds it open until the
+    block ends. Yields its address."""
     listener = socket.create_server(("127.0.0.1", 0))
     held, stop = [], threading.Event()
 
     def serve(connection: socket.socket) -> None:
         try:
-            if answer is None:
+            if isinstance(answer, dict):
+                answer_by_op(connection, answer, stop)
+            elif answer is None:
                 connection.sendall(struct.pack("Q", 1 << 15))
                 while not stop.wait(0.1):
                     connection.sendall(b"\x00")
@@ -116,6 +163,20 @@ def test_a_peer_that_is_not_a_scheduler_ends_the_run_in_one_line(shared_data, tm
     assert run.stderr.startswith(f"mcz: error: --dask {address}: not a Dask scheduler ("), run.stderr
     assert len(run.stderr.splitlines()) == 1 and "Traceback" not in run.stderr, run.stderr
     assert run.stderr.rstrip().endswith("; no partial file was left behind")
+    assert list(out.iterdir()) == []
+
+
+def test_a_scheduler_silent_after_the_start_ends_the_run_in_one_line(shared_data, tmp_path):
+    """Before: a peer that answered the client's start, claiming a worker, and then nothing, hung
+    the run for ever: Dask asks for the worker count without a deadline."""
+    out = tmp_path / "out"
+    out.mkdir()
+    with peer(SILENT_AFTER_THE_START, False) as address:
+        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q",
+                      setup=SHORT_TIMEOUT)
+    assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert run.stderr.startswith(f"mcz: error: the Dask scheduler at {address} did not say how many workers it has ("
+                                 "TimeoutError: "), run.stderr
     assert list(out.iterdir()) == []
 
 

@@ -518,3 +518,24 @@ def test_file_names_with_a_line_break_or_no_utf8_name_an_asf_on_one_line(shared_
     result = CliRunner().invoke(main, ["convert", str(folder), "-o", str(tmp_path / "out")])
     assert result.exit_code == 0, result.output
     assert sorted(read_asf(path).name for path in (tmp_path / "out").glob("*.asf")) == ["a b", "c\ufffd"]
+
+
+@pytest.mark.parametrize("clip", ["bvh", "amc"])
+def test_a_symbolic_link_in_the_output_folder_never_takes_a_file_outside_it(shared_data, tmp_path, clip):
+    """Before: `convert in -o out`, where out/sub was a link to a folder elsewhere, wrote in/sub's
+    clips there (decompress refused the same link). Now refused in one line, nothing written."""
+    (tmp_path / "in" / "sub").mkdir(parents=True)
+    if clip == "bvh":
+        (tmp_path / "in" / "sub" / "c.bvh").write_bytes(format_bvh(a_clip_with("x")).encode())
+        first = "c.amc"
+    else:
+        for name in ("09.asf", "09_01.amc"):
+            (tmp_path / "in" / "sub" / name).symlink_to(shared_data / "cmu" / "09" / name)
+        first = "09_01.bvh"
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "sub").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "--units", "cm"])
+    assert result.exit_code == 1 and list((tmp_path / "elsewhere").iterdir()) == []
+    assert result.stderr == (f"mcz: error: {tmp_path / 'out' / 'sub' / first}: its folder leads outside the output "
+                             "folder through a symbolic link; refusing to write it\n")

@@ -2,9 +2,10 @@
 or `mcz decompress` leaves no .mcz, no temporary file and no half-written AMC, exits non-zero
 and says so in one line.
 
-Two kinds of run: a plain `mcz compress` killed while it works on a real folder, and runs whose
+Three kinds of run: a plain `mcz compress` killed while it works on a real folder, runs whose
 file writing is slowed down (in the child only) so that the signal lands exactly while a
-temporary file is half written: the clean-up is then proven, not just likely.
+temporary file is half written: the clean-up is then proven, not just likely, and a run whose
+signal lands in numba's compiled code.
 """
 
 from __future__ import annotations
@@ -103,6 +104,44 @@ CODING_CHILD = HELD_CHILD.format(module="mocapzip.ratecontrol.encode", name="cod
 DECODING_CHILD = HELD_CHILD.format(module="mocapzip.archive.reader", name="Archive.file_blocks")  # a file's decoding
 
 
+# Runs the real `mcz compress` with the coding of its first clip replaced by compiled code that
+# allocates until the process receives a signal (creating the marker file first): the signal lands in
+# numba's code, as it may in the codec's kernels, whose dispatcher then raises a SystemError caused
+# by it. Python runs the signal's handler only when the kernel returns; a thread sees the signal
+# arrive (`signal.set_wakeup_fd`) and tells the kernel to return.
+COMPILED_CHILD = r"""
+import os, signal, threading
+from pathlib import Path
+import numpy as np
+from numba import njit
+from mocapzip.ratecontrol import encode
+from mocapzip.cli.main import main
+
+@njit(nogil=True)
+def allocating(stop):
+    total = 0.0
+    while not stop[0]:
+        row = np.empty(8)
+        row[0] = 1.0
+        total += row[0]
+    return np.zeros(2) + total, np.zeros(2, np.int64)  # a tuple with int64s, as `markers_to_channels`
+
+stop = np.zeros(1, np.bool_)
+allocating(np.ones(1, np.bool_))
+received, sent = os.pipe()
+os.set_blocking(sent, False)
+signal.set_wakeup_fd(sent)
+threading.Thread(target=lambda: (os.read(received, 1), stop.fill(True)), daemon=True).start()
+
+def coded_until_a_signal(*args, **kwargs):
+    Path(os.environ["MCZ_TEST_MARKER"]).touch()
+    return allocating(stop)
+
+encode.code_clip = coded_until_a_signal
+main(prog_name="mcz")
+"""
+
+
 def start(args: list, env: dict | None = None) -> subprocess.Popen:
     # SIGINT may be ignored by whatever started the test run (a background job); the child gets Python's default.
     return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
@@ -129,6 +168,19 @@ def wait_for(marker: Path, proc: subprocess.Popen) -> None:
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline, "the child never reached the slowed write"
         time.sleep(0.02)
+
+
+@SIGNALS
+def test_compress_interrupted_in_compiled_code(shared_data, tmp_path, signum):
+    """Before: a traceback ending in `SystemError: CPUDispatcher(...) returned a result with an
+    exception set` (`mcz compress --model tensor` of HDM05, Ctrl-C in `markers_to_channels`)."""
+    out, marker = tmp_path / "out", tmp_path / "marker"
+    out.mkdir()
+    proc = start([sys.executable, "-c", COMPILED_CHILD, "compress", shared_data / "cmu" / "09", "-o", out / "db.mcz",
+                  "-j", "1"], {**os.environ, "MCZ_TEST_MARKER": str(marker)})
+    wait_for(marker, proc)
+    interrupt(proc, signum)
+    assert list(out.iterdir()) == []
 
 
 @pytest.mark.parametrize("signum, jobs", [(signal.SIGINT, "1"), (signal.SIGTERM, "2")], ids=["SIGINT", "SIGTERM-j2"])

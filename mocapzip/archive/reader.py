@@ -37,7 +37,8 @@ from mocapzip.codec.patches import FramePatches, channel_steps
 from mocapzip.formats.amc import AmcStyle, Motion
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader, parse_json
-from mocapzip.formats.text import MAX_ABS_VALUE, check_folders, in_value_range, write_file_atomically
+from mocapzip.formats.text import (MAX_ABS_VALUE, check_folders, check_inside, in_value_range,
+                                   write_file_atomically)
 from mocapzip.inputs.registry import InputFormat, stored_format
 from mocapzip.legacy import Format
 from mocapzip.legacy import streams as old_streams
@@ -430,11 +431,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
         folders = {PurePosixPath(archive.clips[i]["path"]).parent for i in chosen}
         targets = {out.joinpath(*path.split("/")): (kind, index) for path, (kind, index) in archive.files.items()
                    if (index in chosen if kind == "motion" else PurePosixPath(path).parent in folders)}
-        root = os.path.realpath(out)
-        for path in targets:
-            if os.path.commonpath([root, os.path.realpath(path.parent)]) != root:
-                raise MocapFormatError("its folder leads outside the output folder through a symbolic link; "
-                                       "refusing to write it", path)
+        check_inside(out, targets)
         check_folders(path.parent for path in targets)
         existing = [p for p in targets if os.path.lexists(p)]
         if existing and not force:
