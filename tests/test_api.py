@@ -115,7 +115,7 @@ def test_a_lossless_archive_reports_zero_error_and_exact_values(shared_data):
     ({"max_error": "none"}, "max_error must be a number of cm or None"),
     ({"lossless": True, "max_error": 3.0}, "max_error has no meaning with lossless=True"),
     ({"colour": "red"}, "compress.. takes no option 'colour'"),
-    ({"error": 0}, "error_cm must be above 0"),
+    ({"error": 0}, "error_cm must be from 1e-06 to 1e\\+06 cm"),
 ])
 def test_compress_refuses_options_it_cannot_honour_before_reading_anything(tmp_path, options, message):
     with pytest.raises(mocapzip.SettingsError, match=message):
