@@ -156,7 +156,7 @@ def test_mcz_test_against_the_source_folder_prints_each_clips_worst_vertex(share
     ({"max_error": "none"}, "max_error must be a number of cm or None"),
     ({"lossless": True, "max_error": 3.0}, "max_error has no meaning with lossless=True"),
     ({"colour": "red"}, "compress.. takes no option 'colour'"),
-    ({"error": 0}, "error_cm must be above 0"),
+    ({"error": 0}, "error_cm must be from 1e-06 to 1e\\+06 cm"),
 ])
 def test_compress_refuses_options_it_cannot_honour_before_reading_anything(tmp_path, options, message):
     with pytest.raises(mocapzip.SettingsError, match=message):

@@ -413,3 +413,16 @@ def test_running_out_of_memory_is_one_line(monkeypatch):
     result = CliRunner().invoke(main, ["test", str(GOLDEN_LOSSY)])
     assert result.exit_code == 1 and isinstance(result.exception, SystemExit)
     assert result.stderr == "mcz: error: out of memory; no partial file was left behind\n"
+
+
+@pytest.mark.parametrize("option", [["-e", "1e-17"], ["--max-error", "1e-300"], ["--contact-error", "1e-300"]])
+def test_an_error_finer_than_any_capture_is_a_usage_error(shared_data, tmp_path, option):
+    """Before: `-e 1e-17` on cmu/09 ended in a traceback (`ValueError: coefficients must be below
+    2**62 in magnitude`: steps that fine); `--max-error 1e-300` printed numpy's divide-by-zero
+    warnings before its refusal. Exact values are --lossless's."""
+    result = CliRunner().invoke(main, ["compress", str(shared_data / "cmu" / "09"), "-o", str(tmp_path / "x.mcz"),
+                                       "-q", *option])
+    assert result.exit_code == 2, result.output
+    name = {"-e": "error_cm", "--max-error": "max_error_cm", "--contact-error": "contact_error_cm"}[option[0]]
+    assert f"Error: {name} must be from 1e-06 to 1e+06 cm (exact values: --lossless), got {option[1]}" in result.output
+    assert list(tmp_path.iterdir()) == []

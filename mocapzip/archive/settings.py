@@ -15,6 +15,10 @@ DEFAULT_ERROR_CM = 1.0
 # Errors and bounds above this mean nothing for a body (10 km) and overflow the step arithmetic
 # (`-e 1e200`: OverflowError in `codec.basis.steps_for`, which squares them).
 MAX_ERROR_CM = 1e6
+# Below this (10 nm) no capture is exact: what must come back exactly is --lossless's. Far below it the
+# quantiser's integers pass the 2**62 a stream holds (`-e 1e-17` on cmu/09, `-e 1e-20` on a small BVH:
+# ValueError in `encode_matrices`); 1e-9 coded cmu/09, and BVH clips of roots 9e6 cm out, at 0 cm.
+MIN_ERROR_CM = 1e-6
 AUTO_CODER = "auto"  # compress only: "primed" when the priors pay for themselves, else "context"
 
 
@@ -103,13 +107,12 @@ def checked(settings: Settings) -> Settings:
             compiled_modes(settings.modes)
         except ValueError as exc:
             raise SettingsError(str(exc)) from None
-    if not 0 < settings.error_cm <= MAX_ERROR_CM:
-        raise SettingsError(f"error_cm must be above 0 and at most {MAX_ERROR_CM:g} cm, got {settings.error_cm}")
     bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm}
     bounds = {name: bound for name, bound in bounds.items() if bound is not None}
-    for name, bound in bounds.items():
-        if not 0 < bound <= MAX_ERROR_CM:
-            raise SettingsError(f"{name} must be above 0 and at most {MAX_ERROR_CM:g} cm, got {bound}")
+    for name, bound in {"error_cm": settings.error_cm, **bounds}.items():
+        if not MIN_ERROR_CM <= bound <= MAX_ERROR_CM:
+            raise SettingsError(f"{name} must be from {MIN_ERROR_CM:g} to {MAX_ERROR_CM:g} cm (exact values: "
+                                f"--lossless), got {bound}")
     numbers = [settings.error_cm, *bounds.values(), settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
                settings.fps, *(settings.split or [])]
     if not all(math.isfinite(x) for x in numbers):

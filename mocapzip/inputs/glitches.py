@@ -136,9 +136,10 @@ def glitch_mask(model: SkeletonModel, glitches: list[Glitch], frame_numbers: np.
     """(frames, joints) bool: the joints each REPAIRABLE glitch throws off, its bone's and every joint
     below it, over its frames; what `--repair-glitches` leaves to the decoder instead of patching."""
     mask = np.zeros((len(frame_numbers), len(model.names)), bool)
+    at = {model.point_name(j): j for j in range(len(model.names))}  # a jump names its point: a BVH's End Site
     for glitch in (g for g in glitches if g.kind in REPAIRABLE):
         frames = (frame_numbers >= glitch.first) & (frame_numbers <= glitch.last)
-        mask[np.ix_(frames, [model.index[glitch.bone]])] = True
+        mask[np.ix_(frames, [at[glitch.bone]])] = True
     for j in range(1, len(model.parents)):  # parents come before children
         mask[:, j] |= mask[:, model.parents[j]]
     return mask
