@@ -424,5 +424,6 @@ def test_an_error_finer_than_any_capture_is_a_usage_error(shared_data, tmp_path,
                                        "-q", *option])
     assert result.exit_code == 2, result.output
     name = {"-e": "error_cm", "--max-error": "max_error_cm", "--contact-error": "contact_error_cm"}[option[0]]
-    assert f"Error: {name} must be from 1e-06 to 1e+06 cm (exact values: --lossless), got {option[1]}" in result.output
+    assert result.stderr == (f"mcz compress: {name} must be from 1e-06 to 1e+06 cm (exact values: --lossless), "
+                             f"got {option[1]} (see mcz compress --help)\n")
     assert list(tmp_path.iterdir()) == []
