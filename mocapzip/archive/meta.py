@@ -206,13 +206,7 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
     n_classes = len(meta["classes"])
     for k, skeleton in enumerate(meta["skeletons"]):
         _check_file_name(skeleton["name"], f"skeletons[{k}].name", fail)
-        _check_skeleton_entry(skeleton, k, fail)
-        if skeleton.get("format") == "bvh" and skeleton["units"] is None:  # the unit compress could not tell
-            if not settings["lossless"]:
-                raise fail(f"skeletons[{k}].units", "null only in a lossless archive: a lossy clip's decode needs "
-                                                    "the unit of its lengths")
-            if skeleton["units_inferred"]:
-                raise fail(f"skeletons[{k}].units_inferred", "true, but units is null: no unit was inferred")
+        _check_skeleton_entry(skeleton, k, settings["lossless"], fail)
     needed = {"meta", "skeletons"}
     if not settings["lossless"]:
         needed.update(f"class/{k:04d}" for k in range(n_classes))
@@ -397,7 +391,7 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
     return streams + patches
 
 
-def _check_skeleton_entry(entry: dict, k: int, fail) -> None:
+def _check_skeleton_entry(entry: dict, k: int, lossless: bool, fail) -> None:
     """A skeleton's entry names an input format mcz reads (or none: an ASF) and has that format's
     fields (`InputFormat.entry_fields`), no others."""
     input_format = stored_format(entry)
@@ -408,6 +402,7 @@ def _check_skeleton_entry(entry: dict, k: int, fail) -> None:
     fields = {"name", *(() if input_format.asf_skeletons else ("format",)), *input_format.entry_fields}
     if entry.keys() != fields:
         raise fail(f"skeletons[{k}]", f"{input_format.skeleton_kind} entries have exactly {', '.join(sorted(fields))}")
+    input_format.check_entry(entry, k, lossless, fail)
 
 
 def _check_relative_path(path: str, field: str, fail) -> None:

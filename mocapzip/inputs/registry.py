@@ -103,6 +103,8 @@ class InputFormat:
     entry_fields: frozenset[str] = frozenset()  # `SourceSkeleton.fields`' names, which every entry of its skeletons has
     # (row, index, fail) -> streams the row needs beyond its clip's: meta's rules for this format's rows
     check_row: Callable[[dict, int, Callable], list[str]] = lambda row, index, fail: []
+    # (entry, index, lossless, fail): meta's rules for the fields of this format's skeleton entries
+    check_entry: Callable[[dict, int, bool, Callable], None] = lambda entry, index, lossless, fail: None
     # `mcz inspect` without --check reads its clips as lossless coding does: every channel of the file,
     # no model needed (BVH); else as lossy coding does (an AMC's cut last frame dropped)
     inspects_lossless: bool = False
@@ -308,6 +310,15 @@ def _write_bvh(archive: Archive, index: int) -> Iterator[bytes]:
         yield text.encode(encoding)
 
 
+def _check_bvh_entry(entry: dict, index: int, lossless: bool, fail) -> None:
+    if entry["units"] is None:  # the unit compress could not tell
+        if not lossless:
+            raise fail(f"skeletons[{index}].units", "null only in a lossless archive: a lossy clip's decode needs "
+                                                    "the unit of its lengths")
+        if entry["units_inferred"]:
+            raise fail(f"skeletons[{index}].units_inferred", "true, but units is null: no unit was inferred")
+
+
 def _check_bvh_row(row: dict, index: int, fail) -> list[str]:
     where = f"clips[{index}]"
     problem = motion_lines_problem(row["bvh"]["motion"], row["frames"])
@@ -323,4 +334,5 @@ def _check_bvh_row(row: dict, index: int, fail) -> list[str]:
 BVH = register(InputFormat(
     "bvh", (".bvh",), _bvh_hierarchy, _read_hierarchy_text, _read_bvh, _write_bvh, skeleton_kind="BVH hierarchy",
     stored_skeleton=_stored_hierarchy, extras=_bvh_extras, row_field="bvh",
-    entry_fields=frozenset({"encoding", "units", "units_inferred"}), check_row=_check_bvh_row, inspects_lossless=True))
+    entry_fields=frozenset({"encoding", "units", "units_inferred"}), check_row=_check_bvh_row,
+    check_entry=_check_bvh_entry, inspects_lossless=True))
