@@ -119,7 +119,10 @@ def _count(n: int, noun: str) -> str:
 
 def _errors(report: dict) -> str:
     """The achieved errors: every clip's MEAN is within -e, so the largest mean is the bound that held."""
-    return f"largest clip mean error {report['largest_mean_error_cm']:.3f} cm (max {report['largest_max_error_cm']:.3f} cm)"
+    vertex = report.get("largest_max_vertex_error_cm")
+    vertex = "" if vertex is None else f", worst vertex {vertex:.3f} cm"
+    return (f"largest clip mean error {report['largest_mean_error_cm']:.3f} cm (max {report['largest_max_error_cm']:.3f} cm"
+            f"{vertex})")
 
 
 def _summary_line(s: dict) -> str:
@@ -162,7 +165,7 @@ def _dask_address(ctx, param, value):
 
 
 # Options that only tune the lossy codec: given with --lossless they would be silently ignored.
-LOSSY_ONLY = ("error_cm", "max_error", "contact_error", "plant_feet", "repair_glitches", "representation", "transform", "wavelet", "level", "knot_spacing", "split", "segment", "model", "modes")
+LOSSY_ONLY = ("error_cm", "max_error", "max_vertex_error", "shell_cm", "contact_error", "plant_feet", "repair_glitches", "representation", "transform", "wavelet", "level", "knot_spacing", "split", "segment", "model", "modes")
 
 
 def _refuse_lossy_options(ctx: click.Context) -> None:
@@ -186,6 +189,13 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
                    "measured end to end through the written AMC (the frames beyond it are patched). Default: "
                    f"{MAX_TO_MEAN:g} x -e, which removes gross errors (CMU at -e 1: 0.5 % of frames, 4 % more "
                    "bytes); tighter bounds cost more (5 cm: 41 %; docs/fidelity.md); 'none': no bound.")
+@click.option("--max-vertex-error", "max_vertex_error", type=click.FloatRange(min=0, min_open=True), metavar="CM",
+              help="Also bound every shell vertex of every frame (ACL's error metric: virtual vertices --shell-cm from "
+                   "each bone along its axes, in object space; it sees an end bone's twist, which moves no joint): "
+                   "none ends up further than CM from the source's (frame patches). Off by default; `mcz info` "
+                   "shows each clip's worst vertex either way (docs/fidelity.md).")
+@click.option("--shell-cm", "shell_cm", type=click.FloatRange(min=0), default=ACL_SHELL_CM, show_default=True,
+              metavar="CM", help="The shell vertices' distance from their bone, as ACL's (0: the joints themselves).")
 @click.option("--contact-error", "contact_error", metavar="CM|none", callback=max_error_value, default=None,
               help="Bound on planted feet: each foot or toe joint, in the frames where the source has it on the "
                    "ground and still, ends up within CM of the source (frame patches). Off by default: it costs "
@@ -263,7 +273,7 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
               help="Say where the work runs: with --dask, the scheduler, its workers and its dashboard's link.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @reports_errors
-def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, repair_glitches, lossless, representation, transform, wavelet, level, knot_spacing, classes,
+def compress(inputs, output, error_cm, max_error, max_vertex_error, shell_cm, contact_error, plant_feet, repair_glitches, lossless, representation, transform, wavelet, level, knot_spacing, classes,
              segment, model, modes, split, asf, fps, units, jobs, cache_mb, dask_address, force, skip_bad, quiet, verbose, as_json):
     """Compress the AMC and BVH clips under INPUTS (folders, searched recursively, or files) into one archive.
 
@@ -301,6 +311,7 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
     bound = None if lossless else max_error_cm(max_error, error_cm)
     contact = None if lossless else contact_error_cm(contact_error)
     settings = archive.Settings(error_cm=error_cm, max_error_cm=bound, contact_error_cm=contact,
+                                vertex_error_cm=max_vertex_error, shell_cm=shell_cm,
                                 plant_feet=plant_feet, repair_glitches=repair_glitches, representation=representation, transform=transform_config,
                                 classes=classes, split=_parse_split(split), fps=DEFAULT_FPS if fps is None else fps,
                                 fps_from_files=fps is None, lossless=lossless, segment=segment, model=model,
@@ -397,8 +408,9 @@ def info(archive_path, show_clips, as_json):
 
     Errors are joint-position errors in cm, measured end to end: a clip's mean (what -e
     bounds), its 99th percentile over all joints and frames (archives of format 5 on), and
-    its max (the largest distance of any joint in any frame: what --max-error bounds).
-    Frames patched to meet --max-error are counted per clip.
+    its max (the largest distance of any joint in any frame: what --max-error bounds), and
+    (format 13 on) its worst vertex by ACL's metric, shell vertices --shell-cm from every bone
+    (what --max-vertex-error bounds). Frames patched to meet a bound are counted per clip.
     """
     with importing():
         from mocapzip import archive
@@ -409,6 +421,7 @@ def info(archive_path, show_clips, as_json):
         return
     s = report["settings"]
     bound = f", every joint <= {s['max_error_cm']} cm" if "max_error_cm" in s else ""
+    bound += f", every vertex <= {s['vertex_error_cm']} cm" if "vertex_error_cm" in s else ""
     bound += f", planted feet <= {s['contact_error_cm']} cm" if "contact_error_cm" in s else ""
     bound += ", planted feet held" if s.get("plant_feet") else ""
     bound += ", glitches repaired" if s.get("repair_glitches") else ""
@@ -464,12 +477,14 @@ def info(archive_path, show_clips, as_json):
 def _clip_table(clips: list[dict], names: list[str]) -> None:
     """One line per clip; the class is '-' where the archive keeps no class names (lossless)."""
     width = max([len(c["path"]) for c in clips] + [4])
-    click.echo(f"{'clip':<{width}}  {'frames':>7}  {'class':<8}  {'mean cm':>8}  {'p99 cm':>8}  {'max cm':>8}  {'patched':>7}")
+    click.echo(f"{'clip':<{width}}  {'frames':>7}  {'class':<8}  {'mean cm':>8}  {'p99 cm':>8}  {'max cm':>8}  "
+               f"{'vertex cm':>9}  {'patched':>7}")
     for c in clips:
         name = names[c["class"]] if c["class"] < len(names) else "-"
         p99 = f"{c['p99_error_cm']:>8.3f}" if "p99_error_cm" in c else f"{'-':>8}"  # not stored before format 5
+        vertex = f"{c['max_vertex_error_cm']:>9.3f}" if "max_vertex_error_cm" in c else f"{'-':>9}"  # format 13 on
         click.echo(f"{c['path']:<{width}}  {c['frames']:>7}  {name:<8}  {c['error_cm']:>8.3f}  {p99}  "
-                   f"{c['max_error_cm']:>8.3f}  {c.get('patched_frames', 0):>7}")
+                   f"{c['max_error_cm']:>8.3f}  {vertex}  {c.get('patched_frames', 0):>7}")
 
 
 @main.command("test")

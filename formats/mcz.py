@@ -38,7 +38,7 @@ from mocapzip.formats.text import open_regular_file
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "parse_json", "write_archive"]
 
-FORMAT_VERSION = 12
+FORMAT_VERSION = 13
 # HDF5 object versions no newer than HDF5 1.10's (format 12 on). With "latest", h5py's own HDF5
 # decides: HDF5 2.0 writes a chunked dataset's filter pipeline in a message version 1.10's tools
 # cannot read (`h5ls -r`: "/index Dataset *ERROR*"), and the bytes of an archive depended on the

@@ -46,12 +46,15 @@ __all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "Mocap
 class ClipFidelity(NamedTuple):
     """How far a clip's joints are from its source, measured end to end through the AMC
     values `decompress` writes, in cm: the mean over joints and frames, the 99th percentile of
-    the frames' mean and the largest. All 0 for a lossless archive; p99 is None in lossy
-    archives written before format 5, which did not store it."""
+    the frames' mean and the largest; and the worst shell vertex by ACL's metric
+    (`vertex_cm`, vertices `settings.shell_cm` from each bone; docs/fidelity.md). All 0 for a
+    lossless archive; p99 is None in lossy archives written before format 5, and vertex_cm
+    before format 13, which did not store them."""
 
     mean_cm: float
     p99_cm: float | None
     max_cm: float
+    vertex_cm: float | None = None
 
 
 def joint_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:
@@ -88,7 +91,8 @@ class Clip:
         self.format: str = archive._archive.clip_format(index).name
         self._units = archive._archive.meta["skeletons"][row["skeleton"]].get("units")  # BVH lengths
         lossless = archive._archive.settings.lossless
-        self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"])
+        self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"],
+                                  0.0 if lossless else row.get("max_vertex_error_cm"))
 
     def __repr__(self) -> str:
         return f"<Clip {self.path!r}: {self.frames} frames at {self.fps:g} fps, mean error {self.error.mean_cm:.3f} cm>"
@@ -265,12 +269,13 @@ def open(path: str | os.PathLike) -> MocapArchive:  # noqa: A001 (mocapzip.open,
 _DEFAULT = object()  # max_error not given: the command line's default, MAX_TO_MEAN x error
 # Settings fields that compress's own keywords set: given through **options they would conflict
 _KEYWORD_FIELDS = {"error_cm": "error", "max_error_cm": "max_error", "contact_error_cm": "contact_error",
-                   "lossless": "lossless", "classes": "classes"}
+                   "vertex_error_cm": "max_vertex_error", "lossless": "lossless", "classes": "classes"}
 
 
 def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: str | os.PathLike, *,
              error: float = settings.DEFAULT_ERROR_CM, max_error: float | None = _DEFAULT,
-             contact_error: float | None = None, lossless: bool = False, classes: str = "pooled",
+             contact_error: float | None = None, max_vertex_error: float | None = None, lossless: bool = False,
+             classes: str = "pooled",
              asf: str | os.PathLike | None = None, units: str | None = None, skip_bad: bool = False, jobs: int = 1,
              dask: str | None = None, force: bool = False, **options) -> dict:
     """Compress the ASF/AMC and BVH files under `inputs` (folders or files) into the archive `output`, as
@@ -279,7 +284,9 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
 
     `error`: each clip's mean joint error bound in cm. `max_error`: the bound on every joint of
     every frame in cm (not given: 10 x `error`, as the command line; None: no bound).
-    `contact_error`: the bound on planted foot joints. `lossless`: every AMC value back exactly
+    `contact_error`: the bound on planted foot joints. `max_vertex_error`: the bound on every shell
+    vertex of every frame, ACL's metric (`shell_cm=` sets their distance from the bone, 3 by
+    default; docs/fidelity.md). `lossless`: every AMC value back exactly
     (then no error or bound may be given). `asf`: the skeleton of AMC files that have none beside
     them; `units`: of BVH files' lengths ("cm", "mm", "m", "in"; None: inferred from the skeleton's
     size); `skip_bad`: leave out clips that cannot be read, or coded within the bounds, listed in the
@@ -296,12 +303,14 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     clashing = sorted(set(options) & set(_KEYWORD_FIELDS))
     if clashing:
         raise SettingsError(f"give {clashing[0]} as {_KEYWORD_FIELDS[clashing[0]]}=")
-    for name, bound in (("max_error", max_error), ("contact_error", contact_error)):
+    for name, bound in (("max_error", max_error), ("contact_error", contact_error),
+                        ("max_vertex_error", max_vertex_error)):
         if bound is not None and bound is not _DEFAULT and not isinstance(bound, numbers.Real):
             raise SettingsError(f"{name} must be a number of cm or None, not {bound!r}")
     if lossless:
         given = [name for name, value in (("error", error != settings.DEFAULT_ERROR_CM),
-                                          ("max_error", max_error is not _DEFAULT), ("contact_error", contact_error))
+                                          ("max_error", max_error is not _DEFAULT), ("contact_error", contact_error),
+                                          ("max_vertex_error", max_vertex_error is not None))
                  if value]
         if given:
             raise SettingsError(f"{given[0]} has no meaning with lossless=True (it stores every AMC value exactly)")
@@ -310,7 +319,7 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
         max_error = MAX_TO_MEAN * error
     try:
         chosen = settings.Settings(error_cm=error, max_error_cm=max_error, contact_error_cm=contact_error,
-                                   lossless=lossless, classes=classes, **options)
+                                   vertex_error_cm=max_vertex_error, lossless=lossless, classes=classes, **options)
     except TypeError as exc:  # a keyword that is no Settings field
         raise SettingsError(f"compress() takes no option {str(exc).rsplit(' ', 1)[-1]}") from None
     inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)

@@ -17,7 +17,9 @@ version 11 the lossy file uses `--model tensor` with 09_01 and 64_01 as two leve
 mode: their class is stored as a tensor model (forced: on two clips the model never pays, and the
 golden file is there to pin its streams down), and the BVH clip's class, which fills no grid,
 as PCA. From version 12 the files are written with HDF5 1.10's object versions and their clips
-tables list each clip's achieved errors; the inputs and settings are version 11's.
+tables list each clip's achieved errors; the inputs and settings are version 11's. From version 13
+the lossy file also bounds every shell vertex (ACL's metric, `--max-vertex-error`) at 3 cm with a
+2.5 cm shell, so its settings hold both and its rows their worst vertex.
 
 From version 12 it also writes example_v{FORMAT_VERSION}.mcz, the tiny archive docs/format.md shows
 byte by byte ("Worked examples", checked by tests/test_format_examples.py): the first 4 frames of
@@ -61,6 +63,7 @@ if __name__ == "__main__":
     # The lossy file uses the newest clip coder even where "auto" would not (two clips are too
     # few for priors to pay), so that the coder is what the golden file pins down.
     lossy = Settings(error_cm=1.0, max_error_cm=3.0, contact_error_cm=2.0, repair_glitches=True, plant_feet=True,
+                     vertex_error_cm=3.0, shell_cm=2.5,
                      coefficient_coder="primed", model="tensor", modes=r"(?P<subject>[0-9]+)_01[.]amc$")
     tensor._pays = lambda tensor_bytes, best_bytes: True
     for name, settings in (("lossy", lossy), ("lossless", Settings(lossless=True))):

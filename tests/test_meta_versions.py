@@ -19,7 +19,8 @@ EXAMPLES = {"coefficient_coder": "context", "axes_from_positions": True, "twist_
             "max_error_cm": 10.0, "p99_error_cm": 1.0, "patched_frames": 1, "contact_error_cm": 2.0,
             "repair_glitches": True, "repaired": [[1, 1, 1.0]], "fps_from_files": False, "fps": 200.0,
             "plant_feet": True, "planted_stances": 1, "model": "tensor", "modes": ["subject"],
-            "levels": [["09", "64"]], "tensor_at": [0]}
+            "levels": [["09", "64"]], "tensor_at": [0], "vertex_error_cm": 3.0, "shell_cm": 3.0,
+            "max_vertex_error_cm": 2.0}
 TENSOR = {"model", "modes", "levels", "tensor_at"}  # format 11's, which come together
 
 

@@ -93,6 +93,7 @@ _CLIP = _record(
         "dropped_frames": {"type": "integer", "minimum": 1},
         "twist_flips": {"type": "object", "additionalProperties": {"type": "array", "items": _COUNT}},
         "p99_error_cm": _ERROR,
+        "max_vertex_error_cm": _ERROR,  # format 13 on: the worst shell vertex, ACL's metric (settings.shell_cm)
         "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
         "planted_stances": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},  # format 9 on
         "tensor_at": {"type": "array", "minItems": 1, "maxItems": MAX_NATURAL_MODES, "items": _COUNT},  # format 11 on
@@ -128,6 +129,8 @@ _SETTINGS = _record(
         "segment": {"type": "boolean"},
         "max_error_cm": _POSITIVE,
         "contact_error_cm": _POSITIVE,  # format 6 on
+        "vertex_error_cm": _POSITIVE,  # format 13 on
+        "shell_cm": {"type": "number", "minimum": 0, "maximum": 1e6},  # format 13 on; absent: 3
         "repair_glitches": {"type": "boolean"},  # format 6 on
         "plant_feet": {"type": "boolean"},  # format 9 on
         "fps_from_files": {"type": "boolean"},  # format 7 on; absent: true
@@ -352,11 +355,12 @@ def _check_clip(row: dict, i: int, settings: dict, skeletons: list[dict], n_clas
             raise fail(f"{where}.twist_flips", f"ranges of {bone[:40]!r} are not increasing pairs within the clip")
     if settings["lossless"]:
         if ("segments" in row or "twist_flips" in row or "patched_frames" in row or "planted_stances" in row
-                or kept):
-            raise fail(where, "a lossless clip has no segments, twist flips, patches, stances or extra root stream")
+                or "max_vertex_error_cm" in row or kept):
+            raise fail(where, "a lossless clip has no segments, twist flips, patches, stances, vertex error or extra "
+                              "root stream")
         return [f"clip/{i:05d}"]
-    bounded = "max_error_cm" in settings or "contact_error_cm" in settings
-    for field, on, setting in (("patched_frames", bounded, "max_error_cm or contact_error_cm"),
+    bounded = "max_error_cm" in settings or "contact_error_cm" in settings or "vertex_error_cm" in settings
+    for field, on, setting in (("patched_frames", bounded, "max_error_cm, contact_error_cm or vertex_error_cm"),
                                ("planted_stances", settings.get("plant_feet"), "plant_feet"),
                                ("repaired", settings.get("repair_glitches"), "repair_glitches")):
         if field in row and not on:  # what the spec does not define is refused, not ignored

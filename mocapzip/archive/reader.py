@@ -499,6 +499,9 @@ def info(archive_path) -> dict:
         "worst_error_cm": largest_mean,  # = largest_mean_error_cm, kept for old readers
         "largest_mean_error_cm": largest_mean,  # what -e bounds
         "largest_max_error_cm": max((r["max_error_cm"] for r in meta["clips"]), default=0.0),
+        # format 13 on, lossy: the worst shell vertex (ACL's metric) of any clip; None where not stored
+        "largest_max_vertex_error_cm": max((r["max_vertex_error_cm"] for r in meta["clips"] if "max_vertex_error_cm" in r),
+                                           default=None),
         "skipped": meta.get("skipped", []),  # clips left out by compress --skip-bad
         "dropped_frames": sum(r.get("dropped_frames", 0) for r in meta["clips"]),  # of truncated inputs
     }
@@ -509,8 +512,8 @@ def _info_row(row: dict, fps: float) -> dict:
     `fps`); a segmented take (--segment) with its segments' frames, classes and errors."""
     out = {k: row[k] for k in ("path", "frames", "class", "error_cm", "max_error_cm")}
     out["fps"] = row.get("fps", fps)
-    # p99: format 5 on; patches: --max-error or --contact-error; repaired: --repair-glitches (format 6 on)
-    for optional in ("p99_error_cm", "patched_frames", "dropped_frames", "repaired"):
+    # p99: format 5 on; patches: a bound; repaired: --repair-glitches (format 6 on); vertex: format 13 on, lossy
+    for optional in ("p99_error_cm", "max_vertex_error_cm", "patched_frames", "dropped_frames", "repaired"):
         if optional in row:
             out[optional] = row[optional]
     if "segments" in row:

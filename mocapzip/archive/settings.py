@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 from mocapzip.classes.modes import compiled_modes
-from mocapzip.defaults import DEFAULT_FPS
+from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_FPS
 from mocapzip.ratecontrol.target import Bounds, CodingTarget
 from mocapzip.stages import get_stage, stage_ids
 
@@ -29,6 +29,10 @@ class Settings:
     error_cm: float = DEFAULT_ERROR_CM
     max_error_cm: float | None = None  # bound on every joint of every frame (frame patches); None: no bound
     contact_error_cm: float | None = None  # bound on planted foot joints (motion.contacts; frame patches); None: none
+    # bound on every shell vertex of every frame, ACL's metric (motion.metrics.shell_errors; frame patches;
+    # format 13 on); None: none. `shell_cm`: the vertices' distance from their bone (format 13 on; absent: 3)
+    vertex_error_cm: float | None = None
+    shell_cm: float = ACL_SHELL_CM
     repair_glitches: bool = False  # joints a source glitch throws off are left to the decoder, not held to the bounds
     plant_feet: bool = False  # the decoder holds the source's planted feet still (codec.foot_lock; format 9 on)
     representation: str = "aligned"
@@ -70,7 +74,8 @@ class Settings:
 
     def coding_target(self) -> CodingTarget:
         """What lossy coding reads of these settings: rate control and -c auto's byte model take this part."""
-        return CodingTarget(self.error_cm, Bounds(self.max_error_cm, self.contact_error_cm, self.repair_glitches),
+        return CodingTarget(self.error_cm, Bounds(self.max_error_cm, self.contact_error_cm, self.repair_glitches,
+                                                  self.vertex_error_cm, self.shell_cm),
                             self.plant_feet, self.transform, self.dead_zone, self.basis_precision,
                             None if self.split is None else tuple(self.split))
 
@@ -107,13 +112,16 @@ def checked(settings: Settings) -> Settings:
             compiled_modes(settings.modes)
         except ValueError as exc:
             raise SettingsError(str(exc)) from None
-    bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm}
+    bounds = {"max_error_cm": settings.max_error_cm, "contact_error_cm": settings.contact_error_cm,
+              "vertex_error_cm": settings.vertex_error_cm}
     bounds = {name: bound for name, bound in bounds.items() if bound is not None}
     for name, bound in {"error_cm": settings.error_cm, **bounds}.items():
         if not MIN_ERROR_CM <= bound <= MAX_ERROR_CM:
             raise SettingsError(f"{name} must be from {MIN_ERROR_CM:g} to {MAX_ERROR_CM:g} cm (exact values: "
                                 f"--lossless), got {bound}")
-    numbers = [settings.error_cm, *bounds.values(), settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
+    if not 0 <= settings.shell_cm <= MAX_ERROR_CM:  # 0: the vertices are the bones' origins, joints
+        raise SettingsError(f"shell_cm must be from 0 to {MAX_ERROR_CM:g} cm, got {settings.shell_cm}")
+    numbers = [settings.error_cm, *bounds.values(), settings.shell_cm, settings.dead_zone, settings.basis_precision, settings.axis_weight_cm,
                settings.fps, *(settings.split or [])]
     if not all(math.isfinite(x) for x in numbers):
         raise SettingsError("settings must be finite numbers (no inf or nan)")

@@ -16,7 +16,8 @@ differently is decoded here: `container` (formats 1 to 6's index) and `streams` 
 | 4 to 6 | as format 7 but: the container of `container` (a header CRC, the index a zstd frame in a dataset); `meta` and `skeletons` without dictionaries, `skeletons` a JSON list of texts (`streams.skeleton_texts`) |
 | 7 to 9 | as format 10 but: no `contents` in the index; `skeletons` the texts packed (`streams.skeleton_texts`) |
 | 10, 11 | the index's clips table without its three error columns |
-| 12 | nothing: it is the newest |
+| 12 | as format 13 but: no vertex error (`max_vertex_error_cm` in rows, `vertex_error_cm` and `shell_cm` in settings) |
+| 13 | nothing: it is the newest |
 
 Every format also refuses the meta fields later ones added (`FIELDS_ADDED_IN`).
 
@@ -41,6 +42,7 @@ FIELDS_ADDED_IN = {
     9: (("settings", "plant_feet"), ("clips", "planted_stances")),
     11: (("settings", "model"), ("settings", "modes"), ("classes", "model"), ("classes", "modes"),
          ("classes", "levels"), ("clips", "tensor_at")),
+    13: (("settings", "vertex_error_cm"), ("settings", "shell_cm"), ("clips", "max_vertex_error_cm")),
 }
 # What an archive from before a setting was added meant by its absence, where that is not
 # `archive.settings.Settings`' default.

@@ -886,6 +886,44 @@ def fk_joint_distances(values, original, parents, link, vct, axis0, col_start, n
 
 
 @njit(cache=True, nogil=True)
+def fk_shell_distances(values, original, shell_cm, origin_at, rotation_of, axes, parents, link, vct, axis0, col_start,
+                       nchan, chan_kind, chan_axis, to_rad, cm_per_unit):
+    """metrics.shell_errors of channel `values` against channel `original` (both (F, C)): (F, B) cm,
+    per frame and shell frame (`metrics.shell_bones`: `origin_at`, `rotation_of`) the worst of its
+    three vertices `shell_cm` along the axes of the world rotation R_j = C_j^T W_j (`axes`: C)."""
+    F = values.shape[0]
+    J = parents.shape[0]
+    B = origin_at.shape[0]
+    every = np.arange(J)
+    W = np.empty((J, 3, 3))
+    Wo = np.empty((J, 3, 3))
+    pos = np.empty((J, 3))
+    poso = np.empty((J, 3))
+    d = np.empty((F, B))
+    for f in range(F):
+        _fk_frame(values, f, every, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                  to_rad, cm_per_unit, W, pos)
+        _fk_frame(original, f, every, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                  to_rad, cm_per_unit, Wo, poso)
+        for b in range(B):
+            o = origin_at[b]
+            j = rotation_of[b]
+            worst = 0.0
+            for k in range(3):  # vertex k: the origin's move plus shell_cm x (row k of R' - R)
+                sq = 0.0
+                for col in range(3):
+                    turn = 0.0
+                    for i in range(3):
+                        turn += axes[j, i, k] * (W[j, i, col] - Wo[j, i, col])
+                    x = pos[o, col] - poso[o, col] + shell_cm * turn
+                    sq += x * x
+                if sq > worst:
+                    worst = sq
+            d[f, b] = math.sqrt(worst)
+    return d
+
+
+@njit(cache=True, nogil=True)
 def fk_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                  to_rad, cm_per_unit):
     """(mean, max) of fk_joint_distances (mean as np.mean: pairwise sum)."""

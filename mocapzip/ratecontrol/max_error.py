@@ -45,47 +45,67 @@ class TargetError(MocapFormatError):
 
 @dataclass(frozen=True)
 class Achieved:
-    """A clip's joint-position error in cm, every joint of every frame as written: what its row stores."""
+    """A clip's error in cm, every joint of every frame as written: what its row stores."""
 
     mean: float
     p99: float
     max: float
     repaired: tuple = ()  # with --repair-glitches: [first, last, cm] per repaired run (`glitches.repaired_ranges`)
+    vertex: float | None = None  # the worst shell vertex (ACL's metric, `Bounds.shell_cm`) of any bone in any frame
 
     @classmethod
-    def of(cls, distances: np.ndarray, repaired: tuple = ()) -> "Achieved":
+    def of(cls, distances: np.ndarray, repaired: tuple = (), vertex: float | None = None) -> "Achieved":
         """From (frames, joints) distances; the mean summed as the encoder's checks sum it (pairwise)."""
         flat = np.ascontiguousarray(distances, dtype=np.float64).ravel()
         if not flat.size:
-            return cls(0.0, 0.0, 0.0, repaired)
-        return cls(float(compiled.np_sum(flat) / flat.size), float(np.percentile(flat, 99)), float(flat.max()), repaired)
+            return cls(0.0, 0.0, 0.0, repaired, vertex)
+        return cls(float(compiled.np_sum(flat) / flat.size), float(np.percentile(flat, 99)), float(flat.max()), repaired,
+                   vertex)
 
 
 def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePatches | None]:
     """What a decode of `clip` (`check`: its `inputs.clip.FinalCheck`) achieves, and the patches
-    (None if no frame needs one) that hold its joints within `bounds` (`joint_limits`); the
-    errors are those with the patches."""
+    (None if no frame needs one) that hold its joints within `bounds` (`joint_limits`) and its
+    shell vertices within `bounds.vertex_error_cm`; the errors are those with the patches.
+
+    A frame beyond a vertex bound corrects the channels that turn the vertex's bone and move its
+    origin (theirs and their ancestors'), as a joint beyond its bound corrects its chain."""
     values, original = check.values, clip.positions
     distances = check.distances.copy()
     repaired = None
     if bounds.repair_glitches and bounds.on_joints:  # with no bound nothing is let past one
         repaired = glitch_mask(clip.model, clip.glitches, clip.motion.frame_numbers)
     limits = joint_limits(clip, bounds, repaired)
-    bad = np.flatnonzero(np.any(distances > limits, axis=1)) if limits is not None else np.zeros(0, np.int64)
+    tail, source = clip.decode_tail, clip.motion.values
+    vertices = tail.shell_distances(clip.as_written(values.copy()), source, bounds.shell_cm)
+    vertex_limit = np.inf if bounds.vertex_error_cm is None else bounds.vertex_error_cm
+    bones = tail.shell_bones
+    vertex_held = np.ones(vertices.shape, bool)  # repaired joints' bones (--repair-glitches) are not held
+    if repaired is not None:
+        vertex_held = ~(repaired[:, bones.origin_at] | repaired[:, bones.rotation_of])
+    over = np.zeros(len(distances), bool) if limits is None else np.any(distances > limits, axis=1)
+    bad = np.flatnonzero(over | np.any((vertices > vertex_limit) & vertex_held, axis=1))
     if not bad.size:
         _check_range(clip, values)
-        return _with_repairs(distances, repaired, clip), None
+        return _with_repairs(distances, repaired, clip, vertices), None
+    if limits is None:
+        limits = np.full(distances.shape, np.inf)
     steps = channel_steps(clip.model, clip.layout)
-    step_cm = float(np.float32(bounds.max_error_cm if bounds.max_error_cm is not None else bounds.contact_error_cm))
-    residual = clip.motion.values[bad] - values[bad]
+    step_cm = float(np.float32(next(b for b in (bounds.max_error_cm, bounds.contact_error_cm, bounds.vertex_error_cm)
+                                    if b is not None)))
+    residual = source[bad] - values[bad]
     chains = _chain_channels(clip)
+    bone_chains = chains[bones.rotation_of] | chains[bones.origin_at]  # (B, channels)
     before, limit = distances[bad], limits[bad]
+    vertex_before, vertex_held = vertices[bad], vertex_held[bad]
     # repaired joints (--repair-glitches) neither call for corrections nor count against one
     held = np.ones(before.shape, bool) if repaired is None else ~repaired[bad]
-    # the channels a frame corrects: those of the joints beyond their bound, and their ancestors'
-    corrected = (before > limit).astype(np.int64) @ chains > 0
+    # the channels a frame corrects: those of the joints and bones beyond their bound, and their ancestors'
+    vertex_over = (vertex_before > vertex_limit) & vertex_held
+    corrected = ((before > limit).astype(np.int64) @ chains + vertex_over.astype(np.int64) @ bone_chains) > 0
     # a frame starts at the level whose step is its tightest broken bound
-    tightest = np.where(before > limit, limit, np.inf).min(axis=1)
+    tightest = np.minimum(np.where(before > limit, limit, np.inf).min(axis=1),
+                          np.where(vertex_over.any(axis=1), vertex_limit, np.inf))
     levels = np.maximum(0, np.ceil(np.log2(step_cm / tightest) - 1e-6)).astype(np.int64)
     ints = np.zeros(residual.shape, np.int64)
     pending = np.arange(len(bad))
@@ -99,15 +119,19 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
             ints[pending] = UniformQuantiser(1.0, PATCH_DEAD_ZONE).quantise(kept / row_steps)
         except ValueError:  # a value so large that its patch would pass the quantiser's range
             raise _unbounded(clip, f"frame {int(bad[pending[0]])} needs a patch larger than patches hold") from None
-        patched = values[bad[pending]] + ints[pending] * row_steps  # as FramePatches.apply adds them
-        after = clip.decode_tail.joint_distances(clip.as_written(patched), original[bad[pending]])
-        passed = np.all(after <= limit[pending], axis=1) & (
+        patched = clip.as_written(values[bad[pending]] + ints[pending] * row_steps)  # as FramePatches.apply adds them
+        after = tail.joint_distances(patched, original[bad[pending]])
+        vertex_after = tail.shell_distances(patched, source[bad[pending]], bounds.shell_cm)
+        vertex_beyond = (vertex_after > vertex_limit) & vertex_held[pending]
+        passed = np.all(after <= limit[pending], axis=1) & ~vertex_beyond.any(axis=1) & (
             (after * held[pending]).sum(axis=1) <= (before[pending] * held[pending]).sum(axis=1))
         distances[bad[pending[passed]]] = after[passed]
-        failed, after = pending[~passed], after[~passed]
-        # a joint beyond its bound, or worse than before, adds its chain; with nothing to add, a finer level
+        vertices[bad[pending[passed]]] = vertex_after[passed]
+        failed, after, vertex_beyond = pending[~passed], after[~passed], vertex_beyond[~passed]
+        # a joint beyond its bound or worse than before, or a bone beyond its bound, adds its chain;
+        # with nothing to add, a finer level
         worse = ((after > limit[failed]) | (after > before[failed])) & held[failed]
-        wider = corrected[failed] | (worse.astype(np.int64) @ chains > 0)
+        wider = corrected[failed] | ((worse.astype(np.int64) @ chains + vertex_beyond.astype(np.int64) @ bone_chains) > 0)
         finer = np.all(wider == corrected[failed], axis=1)
         corrected[failed] = wider
         levels[failed[finer]] += 1
@@ -116,7 +140,7 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     patched = values.copy()
     patches.apply(patched, steps)
     _check_range(clip, patched)
-    return _with_repairs(distances, repaired, clip), patches
+    return _with_repairs(distances, repaired, clip, vertices), patches
 
 
 def _check_range(clip, values: np.ndarray) -> None:
@@ -150,9 +174,9 @@ def joint_limits(clip, bounds: Bounds, repaired: np.ndarray | None = None) -> np
     return limits
 
 
-def _with_repairs(distances: np.ndarray, repaired: np.ndarray | None, clip) -> Achieved:
+def _with_repairs(distances: np.ndarray, repaired: np.ndarray | None, clip, vertices: np.ndarray) -> Achieved:
     ranges = () if repaired is None else tuple(repaired_ranges(repaired, distances, clip.motion.frame_numbers))
-    return Achieved.of(distances, ranges)
+    return Achieved.of(distances, ranges, float(vertices.max()) if vertices.size else 0.0)
 
 
 def _chain_channels(clip) -> np.ndarray:

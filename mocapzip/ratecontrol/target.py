@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mocapzip.defaults import ACL_SHELL_CM
+
 
 @dataclass(frozen=True)
 class Bounds:
@@ -14,11 +16,13 @@ class Bounds:
     max_error_cm: float | None = None  # every joint of every frame
     contact_error_cm: float | None = None  # planted foot joints (`motion.contacts`)
     repair_glitches: bool = False  # the joints a source glitch throws off are not held (`glitches.glitch_mask`)
+    vertex_error_cm: float | None = None  # every shell vertex of every frame (ACL's metric, `motion.metrics`)
+    shell_cm: float = ACL_SHELL_CM  # the shell vertices' distance from their bone, cm
 
     @property
     def on_joints(self) -> bool:
-        """Whether any joint has a bound of its own (then patches may be needed)."""
-        return self.max_error_cm is not None or self.contact_error_cm is not None
+        """Whether any joint or vertex has a bound of its own (then patches may be needed)."""
+        return self.max_error_cm is not None or self.contact_error_cm is not None or self.vertex_error_cm is not None
 
 
 @dataclass(frozen=True)

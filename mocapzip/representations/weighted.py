@@ -6,12 +6,14 @@ tables (`ChannelTables`) and the representation's own decoder (`Representation.d
 
 from __future__ import annotations
 
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mocapzip.formats.amc import Motion
 from mocapzip.motion import compiled
+from mocapzip.motion.metrics import shell_bones
 from mocapzip.motion.rotations import AXIS_INDEX
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.representations.base import Representation
@@ -95,6 +97,22 @@ class ChannelTables:
         return compiled.fk_joint_distances(np.ascontiguousarray(values, dtype=np.float64),
                                            np.ascontiguousarray(original_positions, dtype=np.float64),
                                            *self.fk_tables())
+
+    def shell_distances(self, values: np.ndarray, original_values: np.ndarray, shell_cm: float) -> np.ndarray:
+        """(F, B) ACL's error (`metrics.shell_errors`) of channel `values` against `original_values`: per
+        frame and `shell_bones` frame, its worst vertex `shell_cm` from the bone, cm."""
+        bones = self.shell_bones
+        return compiled.fk_shell_distances(np.ascontiguousarray(values, dtype=np.float64),
+                                           np.ascontiguousarray(original_values, dtype=np.float64), float(shell_cm),
+                                           bones.origin_at, bones.rotation_of, self._axes, *self.fk_tables())
+
+    @cached_property
+    def shell_bones(self):
+        return shell_bones(self.model)
+
+    @cached_property
+    def _axes(self) -> np.ndarray:
+        return np.ascontiguousarray(self.model.axis, dtype=np.float64)
 
     def fk_tables(self) -> tuple:
         return (self.parents, self.link, self.offset_in_axes, np.ascontiguousarray(self.model.axis[0]),

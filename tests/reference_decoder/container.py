@@ -17,7 +17,7 @@ import numpy as np
 import zstandard
 
 MAGIC = "MCZ mocapzip archive"
-NEWEST_FORMAT = 12  # "Versions": formats 8 to 12 have format 7's container
+NEWEST_FORMAT = 13  # "Versions": formats 8 to 13 have format 7's container
 MAX_ZSTD_OUTPUT = 1 << 28  # streams spec, "zstd frames": 2^28 bytes at most
 # "Dictionaries": the files of the package source tree, by their SHA-256
 DICTIONARY_FOLDER = Path(__file__).resolve().parents[2] / "mocapzip" / "archive" / "dictionaries"

@@ -21,6 +21,7 @@ from mocapzip.archive.settings import Settings
 from mocapzip.archive.skeletons import encode_skeletons
 from mocapzip.codec.entropy.zstd import encode_bytes, pack_blobs
 from mocapzip.codec.segments import OVERLAP
+from mocapzip.defaults import ACL_SHELL_CM
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import FORMAT_VERSION, ArchiveWriter
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES
@@ -29,7 +30,8 @@ from mocapzip.limits import MAX_DECODED_STREAM_BYTES
 # off (segment, repair_glitches, plant_feet), pca (model; format 11 on: tensor, with its modes),
 # a rate from the files where they state one (fps_from_files; format 7 on) and no bound.
 ABSENT_SETTINGS = {"segment": False, "repair_glitches": False, "plant_feet": False, "model": "pca", "modes": None,
-                   "fps_from_files": True, "max_error_cm": None, "contact_error_cm": None}
+                   "fps_from_files": True, "max_error_cm": None, "contact_error_cm": None,
+                   "vertex_error_cm": None, "shell_cm": ACL_SHELL_CM}
 
 
 @dataclass(frozen=True)
@@ -91,6 +93,8 @@ def summary(job: Job, clips: ClipsRead, written: Written, seconds: float) -> dic
         "worst_error_cm": largest_mean,  # kept for old readers: largest_mean_error_cm
         "largest_mean_error_cm": largest_mean,  # what -e bounds
         "largest_max_error_cm": max(r["max_error_cm"] for r in rows),
+        "largest_max_vertex_error_cm": max((r["max_vertex_error_cm"] for r in rows if "max_vertex_error_cm" in r),
+                                           default=None),  # lossy: ACL's metric (settings.shell_cm)
         "seconds": seconds,
         "skipped": list(written.skipped),
         "repaired": [{"path": r["path"], "first": first, "last": last, "error_cm": cm}
@@ -124,6 +128,8 @@ def _clip_row(own: dict, skeleton: int, class_index: int, coding: ClipRecord | N
     # measured (0.998697 takes 9 fewer digits of meta than 0.9986969546376016). p99 only informs.
     row.update(error_cm=_rounded_up(achieved.mean), p99_error_cm=round(achieved.p99, 4),
                max_error_cm=_rounded_up(achieved.max))
+    if achieved.vertex is not None:  # a bound too, with --max-vertex-error: rounded up like max
+        row["max_vertex_error_cm"] = _rounded_up(achieved.vertex)
     if achieved.repaired:
         row["repaired"] = [list(r) for r in achieved.repaired]
     if coding.patched_frames is not None:
