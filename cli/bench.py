@@ -49,7 +49,7 @@ def _codecs(values):
               type=click.Choice(REPRESENTATIONS),
               help="What mcz compresses (repeat for a sweep; default aligned).")
 @click.option("-t", "--transform", "transforms", multiple=True, type=click.Choice(TRANSFORMS),
-              help="Temporal transform (repeat for a sweep; default dct).")
+              help="Temporal transform (repeat for a sweep; default dct-edges).")
 @click.option("--wavelet", default="db4", show_default=True, help="Wavelet for --transform dwt.")
 @click.option("-c", "--classes", "classes", multiple=True, metavar="MODE",
               help="PCA classes: pooled (as compress), single, subject, clip (one per clip), none (no PCA: "
@@ -115,7 +115,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
     progress.QUIET = quiet
     options = bench_module.BenchOptions(
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
-        transforms=list(transforms) or ["dct"], classes=list(classes) or ["pooled"], splits=_splits(splits),
+        transforms=list(transforms) or ["dct-edges"], classes=list(classes) or ["pooled"], splits=_splits(splits),
         codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error,
         contact_error=contact_error, plant_feet=plant_feet, units=units, shell_cm=shell_cm)
     report = bench_module.run_bench(options)

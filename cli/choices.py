@@ -9,7 +9,7 @@ import click
 from mocapzip.defaults import MAX_TO_MEAN, UNITS_CM  # --max-error's default, as a multiple of -e
 
 UNITS = tuple(UNITS_CM)  # --units: BVH length units
-TRANSFORMS = ("dct", "dwt", "poly", "identity")
+TRANSFORMS = ("dct-edges", "dct", "dwt", "poly", "identity")
 REPRESENTATIONS = ("channels", "positions", "aligned", "scaled", "normalised")
 
 CONTACT_ERROR_CM = None  # --contact-error's default: off (its cost and foot skate: docs/fidelity.md)

@@ -216,9 +216,11 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
                    "--split and --segment.")
 @click.option("-r", "--representation", type=click.Choice(REPRESENTATIONS),
               default="aligned", show_default=True, help="What the codec compresses (thesis section 3.2.1).")
-@click.option("-t", "--transform", type=click.Choice(TRANSFORMS), default="dct", show_default=True,
-              help="Temporal transform of the PCA curves: dct (the smallest on every set measured), dwt "
-                   "(wavelets), poly (polynomials fitted piece by piece, 16 % larger than dct on CMU: "
+@click.option("-t", "--transform", type=click.Choice(TRANSFORMS), default="dct-edges", show_default=True,
+              help="Temporal transform of the PCA curves: dct-edges (the DCT, with the largest curves' first "
+                   "and last frames kept by their ends: clip edges as good as the middle, and the smallest on "
+                   "every set measured; docs/fidelity.md), dct (the plain DCT: its error piles up at clip "
+                   "edges), dwt (wavelets), poly (polynomials fitted piece by piece, 16 % larger than dct on CMU: "
                    "docs/seed_methods.md) or identity (none).")
 @click.option("--wavelet", default="db4", show_default=True, help="PyWavelets wavelet name for --transform dwt.")
 @click.option("--level", type=click.IntRange(min=1, max=32), default=None, help="DWT levels (default: as many as the clip allows).")

@@ -19,7 +19,8 @@ golden file is there to pin its streams down), and the BVH clip's class, which f
 as PCA. From version 12 the files are written with HDF5 1.10's object versions and their clips
 tables list each clip's achieved errors; the inputs and settings are version 11's. From version 13
 the lossy file also bounds every shell vertex (ACL's metric, `--max-vertex-error`) at 3 cm with a
-2.5 cm shell, so its settings hold both and its rows their worst vertex.
+2.5 cm shell, so its settings hold both and its rows their worst vertex, and its clips are coded
+with version 13's default transform, `dct-edges`.
 
 From version 12 it also writes example_v{FORMAT_VERSION}.mcz, the tiny archive docs/format.md shows
 byte by byte ("Worked examples", checked by tests/test_format_examples.py): the first 4 frames of

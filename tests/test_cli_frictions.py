@@ -59,7 +59,7 @@ USAGE_ERRORS = [  # (arguments, what the one line says): click's own checks, and
     (["compress", "x.amc", "-o", "x.mcz", "-e", "-1"], "mcz compress: Invalid value for '-e' / '--error': -1.0 is not in the range x>0"),
     (["compress", "x.amc", "-o", "x.mcz", "-e", "abc"], "mcz compress: Invalid value for '-e' / '--error': 'abc' is not a valid float range"),
     (["compress", "x.amc", "-o", "x.mcz", "-e"], "mcz compress: Option '-e' requires an argument"),  # click gives it no context
-    (["compress", "x.amc", "-o", "x.mcz", "--knot-spacing", "5"], "mcz compress: --knot-spacing is for --transform poly, not dct"),
+    (["compress", "x.amc", "-o", "x.mcz", "--knot-spacing", "5"], "mcz compress: --knot-spacing is for --transform poly, not dct-edges"),
     (["compress", "x.amc", "-o", "x.mcz", "--split", "1,2"],
      "mcz compress: Invalid value for --split: expected three non-negative shares R,P,T, e.g. 0.2,0.4,0.4"),
     (["compress"], "mcz compress: Missing argument 'INPUTS...'"),

@@ -92,6 +92,10 @@ class Archive:
             if not self.settings.lossless and self.settings.coefficient_coder not in coders:
                 raise ArchiveError(f"meta: settings.coefficient_coder: {self.settings.coefficient_coder!r} is not "
                                    f"one format {self.format_version} writes ({', '.join(coders)})", self.path)
+            transform = self.settings.transform.get("id") if isinstance(self.settings.transform, dict) else None
+            if not self.settings.lossless and transform in self.format.later_transforms:
+                raise ArchiveError(f"meta: settings.transform: {transform!r} is not one format {self.format_version} "
+                                   "writes", self.path)
             if "axes_from_positions" not in stored:
                 raise ArchiveError(f"meta: settings.axes_from_positions: missing (format {self.format_version} "
                                    "stores it)", self.path)

@@ -91,7 +91,7 @@ class BenchOptions:
     inputs: list
     errors: list = field(default_factory=lambda: [1.0])
     representations: list = field(default_factory=lambda: ["aligned"])
-    transforms: list = field(default_factory=lambda: ["dct"])
+    transforms: list = field(default_factory=lambda: ["dct-edges"])
     classes: list = field(default_factory=lambda: ["pooled"])
     splits: list = field(default_factory=lambda: [None])
     codecs: list = field(default_factory=lambda: list(CODECS))
@@ -866,7 +866,7 @@ def command_line(options: BenchOptions) -> str:
     args = ["mcz", "bench", *map(os.fspath, options.inputs)]
     for flag, values, default in (("-e", [f"{e:g}" for e in options.errors], ["1"]),
                                   ("-r", options.representations, ["aligned"]),
-                                  ("-t", options.transforms, ["dct"]), ("-c", options.classes, ["pooled"]),
+                                  ("-t", options.transforms, ["dct-edges"]), ("-c", options.classes, ["pooled"]),
                                   ("--split", [",".join(f"{x:g}" for x in s) for s in options.splits if s], [])):
         if list(values) != default:
             for v in values:

@@ -16,7 +16,7 @@ differently is decoded here: `container` (formats 1 to 6's index) and `streams` 
 | 4 to 6 | as format 7 but: the container of `container` (a header CRC, the index a zstd frame in a dataset); `meta` and `skeletons` without dictionaries, `skeletons` a JSON list of texts (`streams.skeleton_texts`) |
 | 7 to 9 | as format 10 but: no `contents` in the index; `skeletons` the texts packed (`streams.skeleton_texts`) |
 | 10, 11 | the index's clips table without its three error columns |
-| 12 | as format 13 but: no vertex error (`max_vertex_error_cm` in rows, `vertex_error_cm` and `shell_cm` in settings) |
+| 12 | as format 13 but: no vertex error (`max_vertex_error_cm` in rows, `vertex_error_cm` and `shell_cm` in settings); no transform `dct-edges` |
 | 13 | nothing: it is the newest |
 
 Every format also refuses the meta fields later ones added (`FIELDS_ADDED_IN`).
@@ -44,6 +44,8 @@ FIELDS_ADDED_IN = {
          ("classes", "levels"), ("clips", "tensor_at")),
     13: (("settings", "vertex_error_cm"), ("settings", "shell_cm"), ("clips", "max_vertex_error_cm")),
 }
+# The transforms each format added (`settings.transform.id`): an older lossy archive naming one is refused.
+TRANSFORMS_ADDED_IN = {13: ("dct-edges",)}
 # What an archive from before a setting was added meant by its absence, where that is not
 # `archive.settings.Settings`' default.
 MEANT_WHEN_ABSENT = {"coefficient_coder": "zstd", "axes_from_positions": False}
@@ -66,6 +68,7 @@ class Format:
     coders: tuple[str, ...] = ("context", "primed")  # the coefficient coders the format writes
     settings_defaults: dict = field(default_factory=dict)  # settings it never stores, as it meant them
     later_fields: tuple[tuple[int, str, str], ...] = ()  # (format, part, name): meta fields of later formats
+    later_transforms: tuple[str, ...] = ()  # transforms only later formats write
 
 
 def format_of(version: int) -> Format:
@@ -86,4 +89,5 @@ def format_of(version: int) -> Format:
         settings_defaults={name: MEANT_WHEN_ABSENT[name] for _, part, name in later_fields
                            if part == "settings" and name in MEANT_WHEN_ABSENT},
         later_fields=later_fields,
+        later_transforms=tuple(t for added, ids in TRANSFORMS_ADDED_IN.items() if version < added for t in ids),
     )

@@ -142,6 +142,7 @@ class CodingProxy:
         cost = SYNTHESIS_COST if fast else SLOW_LENGTH_SYNTHESIS_COST
         rows = min(cost * self.n_frames // n_measured, self.n_frames)
         self._synthesised_rows = rows if hasattr(transform, "synthesis") else 0  # bands up to this many rows
+        self._synthesis_of: dict[bool, np.ndarray] = {}  # by `edge`: the synthesis functions' first rows so far
 
     def kept_rows(self, band: float) -> int:
         """Rows a band keeps (as `code_clip` zeroes the rest)."""
@@ -166,22 +167,46 @@ class CodingProxy:
             quantiser = UniformQuantiser(step, self.dead_zone)
             decoded[:, columns] = quantiser.dequantise(quantiser.quantise(self._coef[:kept, columns]))
         if kept <= self._synthesised_rows:
-            return self._original - self._synthesis(kept) @ decoded
+            curves = self._synthesis(kept) @ decoded
+            for columns in self._edge_columns:  # the columns a transform codes by their ends synthesise otherwise
+                curves[:, columns] = self._synthesis(kept, edge=True) @ decoded[:, columns]
+            return self._original - curves
         error = self._coef.copy()
         error[:kept] -= decoded
-        return self.transform.inverse(error, self.n_frames)[self.frames]
+        return self._inverse(error)[self.frames]
 
     @cached_property
     def _original(self) -> np.ndarray:
         """The curves at the measured frames, as the transform gives them back."""
-        return self.transform.inverse(self._coef, self.n_frames)[self.frames]
+        return self._inverse(self._coef)[self.frames]
 
-    def _synthesis(self, kept: int) -> np.ndarray:
-        """(measured frames, kept): the decoded curves of each of the first `kept` unit coefficients."""
-        if self._synthesis_of is None or self._synthesis_of.shape[1] < kept:
-            rows = min(max(kept, 2 * (0 if self._synthesis_of is None else self._synthesis_of.shape[1])),
-                       self._synthesised_rows)
-            self._synthesis_of = self.transform.synthesis(self.n_frames, rows, self.frames)
-        return self._synthesis_of[:, :kept]
+    def _inverse(self, coef: np.ndarray) -> np.ndarray:
+        """The inverse transform of pose and root coefficients side by side, each matrix on its own, as
+        the decoder takes them: a transform's first columns may be coded differently (`EdgeDctTransform`)."""
+        q = self.pose_coef.shape[1]
+        if not self._edge_columns or coef.shape[1] == q:
+            return self.transform.inverse(coef, self.n_frames)
+        return np.hstack([self.transform.inverse(coef[:, :q], self.n_frames),
+                          self.transform.inverse(coef[:, q:], self.n_frames)])
 
-    _synthesis_of: np.ndarray | None = None
+    @cached_property
+    def _edge_columns(self) -> list[slice]:
+        """The columns of `_coef` the transform codes by their ends: the first of the pose's and of the root's."""
+        if not hasattr(self.transform, "edge_width"):
+            return []
+        q = self.pose_coef.shape[1]
+        widths = [(0, self.transform.edge_width(self.n_frames, q))]
+        if self.root_coef is not None:
+            widths.append((q, self.transform.edge_width(self.n_frames, self.root_coef.shape[1])))
+        return [slice(start, start + width) for start, width in widths if width]
+
+    def _synthesis(self, kept: int, edge: bool = False) -> np.ndarray:
+        """(measured frames, kept): the decoded curves of each of the first `kept` unit coefficients
+        (`edge`: of the columns coded by their ends)."""
+        cached = self._synthesis_of.get(edge)
+        if cached is None or cached.shape[1] < kept:
+            rows = min(max(kept, 2 * (0 if cached is None else cached.shape[1])), self._synthesised_rows)
+            extra = {"edge": True} if edge else {}
+            self._synthesis_of[edge] = cached = self.transform.synthesis(self.n_frames, rows, self.frames, **extra)
+        return cached[:, :kept]
+
