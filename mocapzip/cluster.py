@@ -51,7 +51,10 @@ from mocapzip.progress import progress
 # start remote workers without it.
 LOCAL_WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 CONNECT_TIMEOUT_S = 20  # to reach a scheduler given by address and have its handshake, however the peer behaves
-LOCAL_WORKERS_PER_CORE = 4  # `local:N`: at most this many worker processes per core of this machine
+# `local:N`: at most this many worker processes per core of this machine. A task is CPU-bound and a worker
+# runs one at a time, so more gain nothing; each costs its process, and this process's address space grows
+# by about 0.2 GB a worker (glibc's arena of each nanny's thread): 0.96 GB at local:1, 1.66 GB at local:8.
+LOCAL_WORKERS_PER_CORE = 1
 HANDSHAKE_MAX_BYTES = 1 << 16  # a scheduler's first message, its handshake, takes about 60 bytes
 SMALLEST_WINDOW_PER_WORKER = 4  # imap's items in flight per worker, at least: enough to keep each one busy
 ONE_LINE_CHARS = 200  # of an error's message that Dask raised, in mcz's one line
@@ -117,7 +120,9 @@ def on_cluster(address: str, dashboard: bool = False):
                     opened.close()
             what = "has no workers" if client is not None else "cannot be reached"
             message = f"the Dask scheduler at {scheduler} {what} ({_one_line(exc)})"
-            if isinstance(exc, MemoryError):  # Dask read a size from the peer's bytes: not Dask's messages
+            if workers is not None and local is None:  # its scheduler or a worker's process did not start
+                message = f"--dask {address}: the local cluster could not start ({_one_line(exc)})"
+            elif isinstance(exc, MemoryError):  # Dask read a size from the peer's bytes: not Dask's messages
                 message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, bytes Dask read as "
                            "a message size past memory)")
             elif local is None and not isinstance(exc, (OSError, TimeoutError)):  # answers no scheduler gives

@@ -2,7 +2,8 @@
 answers, one that answers HTTP, one whose first bytes declare an enormous message, other
 answers that are no Dask handshake, and a handshake followed by answers no scheduler gives, or
 by silence. Each run ends within mcz's connect timeout (1 s in the child) with one line, exit
-code 1 and no file. `--dask local:N` beyond what the machine can start is a usage error.
+code 1 and no file. `--dask local:N` beyond the machine's cores is a usage error, and a local
+cluster that cannot start is one line.
 
 Each peer is a thread of the test listening on 127.0.0.1. Nothing depends on how fast anything
 runs: a run that hangs meets the child's timeout (`tests/limited.py`) and fails its test.
@@ -202,13 +203,26 @@ def test_any_answer_is_a_handshake_or_a_value_error(answer):
         pass
 
 
-def test_local_workers_are_capped():
-    """`local:N` starts N worker processes: N beyond a few per core would not start (`local:100000`
-    hung with no output)."""
-    most = cluster.LOCAL_WORKERS_PER_CORE * os.cpu_count()
-    assert cluster.parse_address(f"local:{most}") == (most, None)
-    with pytest.raises(cluster.ClusterError, match=f"from 1 to {most} "):
-        cluster.parse_address(f"local:{most + 1}")
+def test_local_workers_are_capped_at_the_cores():
+    """`local:N` starts N worker processes: `local:100000` hung with no output, and `local:8` on 2
+    cores took this process's address space to 1.66 GB for no speed (a task is CPU-bound)."""
+    cores = os.cpu_count()
+    assert cluster.parse_address(f"local:{cores}") == (cores, None)
+    with pytest.raises(cluster.ClusterError, match=f"from 1 to {cores} "):
+        cluster.parse_address(f"local:{cores + 1}")
+
+
+def test_a_local_cluster_that_cannot_start_is_one_line(shared_data, tmp_path):
+    """Before: a worker that failed to start (here: a preload that is not there) was reported as
+    `--dask None: not a Dask scheduler`."""
+    out = tmp_path / "out"
+    out.mkdir()
+    run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", "local:1", "-q",
+                  setup="import dask; dask.config.set({'distributed.worker.preload': ['/nonexistent/preload.py']})")
+    assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert run.stderr.startswith("mcz: error: --dask local:1: the local cluster could not start (RuntimeError: "), \
+        run.stderr
+    assert list(out.iterdir()) == []
 
 
 @pytest.mark.parametrize("address", ["local:100000", "local:0", "tcp://a b", "local:" + "1" * 5000, "local:\uff11",
