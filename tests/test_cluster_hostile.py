@@ -150,35 +150,52 @@ def peer(answer: bytes | dict | None, close: bool):
         thread.join()
 
 
+def compress_at(address: str, shared_data, tmp_path, setup: str = SHORT_TIMEOUT):
+    """`mcz compress` of CMU subject 07 on the cluster at `address`, into an empty folder: (the run,
+    what the folder holds after it)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q", setup=setup)
+    return run, list(out.iterdir())
+
+
 @pytest.mark.parametrize("case", PEERS)
 def test_a_peer_that_is_not_a_scheduler_ends_the_run_in_one_line(shared_data, tmp_path, case):
     """Dask's connect waits for the handshake without a deadline and allocates the size its first
     8 bytes declare: a silent port hung the run, an HTTP answer asked for 3 EiB. mcz checks the
     handshake first, with a deadline: one line, exit code 1, nothing written."""
-    out = tmp_path / "out"
-    out.mkdir()
     with peer(*PEERS[case]) as address:
-        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q",
-                      setup=SHORT_TIMEOUT)
+        run, written = compress_at(address, shared_data, tmp_path)
     assert run.returncode == 1, run.stderr
     assert run.stderr.startswith(f"mcz: error: --dask {address}: not a Dask scheduler ("), run.stderr
     assert len(run.stderr.splitlines()) == 1 and "Traceback" not in run.stderr, run.stderr
     assert run.stderr.rstrip().endswith("; no partial file was left behind")
-    assert list(out.iterdir()) == []
+    assert written == []
 
 
 def test_a_scheduler_silent_after_the_start_ends_the_run_in_one_line(shared_data, tmp_path):
     """Before: a peer that answered the client's start, claiming a worker, and then nothing, hung
     the run for ever: Dask asks for the worker count without a deadline."""
-    out = tmp_path / "out"
-    out.mkdir()
     with peer(SILENT_AFTER_THE_START, False) as address:
-        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q",
-                      setup=SHORT_TIMEOUT)
+        run, written = compress_at(address, shared_data, tmp_path)
     assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
     assert run.stderr.startswith(f"mcz: error: the Dask scheduler at {address} did not say how many workers it has ("
                                  "TimeoutError: "), run.stderr
-    assert list(out.iterdir()) == []
+    assert written == []
+
+
+def test_a_scheduler_that_never_runs_the_tasks_ends_the_run_in_one_line(shared_data, tmp_path, monkeypatch):
+    """Before: a peer that answered the client's start and the worker count, took the tasks and
+    never ran them, hung the run for ever. With no task finished within `mcz.stall-timeout` (Dask's
+    config, here from the environment), mcz asks the scheduler what its workers run: this one does
+    not answer."""
+    monkeypatch.setenv("DASK_MCZ__STALL_TIMEOUT", "1")
+    with peer({**SILENT_AFTER_THE_START, "ncores": {"tcp://127.0.0.1:2": 1}}, False) as address:
+        run, written = compress_at(address, shared_data, tmp_path)
+    assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert run.stderr.startswith(f"mcz: error: the Dask scheduler at {address} finished no task in 1 s and did not "
+                                 "say what its workers are doing (TimeoutError"), run.stderr
+    assert written == []
 
 
 def test_a_scheduler_handshake_as_dask_writes_it_passes():
@@ -215,14 +232,12 @@ def test_local_workers_are_capped_at_the_cores():
 def test_a_local_cluster_that_cannot_start_is_one_line(shared_data, tmp_path):
     """Before: a worker that failed to start (here: a preload that is not there) was reported as
     `--dask None: not a Dask scheduler`."""
-    out = tmp_path / "out"
-    out.mkdir()
-    run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", "local:1", "-q",
-                  setup="import dask; dask.config.set({'distributed.worker.preload': ['/nonexistent/preload.py']})")
+    run, written = compress_at("local:1", shared_data, tmp_path,
+                               setup="import dask; dask.config.set({'distributed.worker.preload': ['/nonexistent/x.py']})")
     assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
     assert run.stderr.startswith("mcz: error: --dask local:1: the local cluster could not start (RuntimeError: "), \
         run.stderr
-    assert list(out.iterdir()) == []
+    assert written == []
 
 
 @pytest.mark.parametrize("address", ["local:100000", "local:0", "tcp://a b", "local:" + "1" * 5000, "local:\uff11",
