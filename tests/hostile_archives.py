@@ -493,6 +493,7 @@ def cases(watched: Path) -> list[Case]:
         ("tensor_model_of_no_mode", _stream("tensor/0001", _model_of_no_mode), "tensor/0001", True),
         ("tensor_model_of_another_grid", _stream("tensor/0001", _other_grid_model), "tensor/0001", True),
         ("tensor_model_damaged", _stream("tensor/0001", b"\x01\x05"), "tensor/0001", True),
+        ("tensor_model_of_zeros", _stream("tensor/0001", _model_of_zeros), "class 1's model", True),
         ("warp_move_not_a_move", _stream("warp/00000", lambda: entropy.encode_bytes(bytes([3]) * 200)), "warp/00000",
          True),
         ("warp_path_ends_short", _stream("warp/00000", lambda: entropy.encode_bytes(bytes([2]) * 3)), "warp/00000",
@@ -509,10 +510,23 @@ def _model_of_no_mode() -> bytes:
         return bytes([0]) + reader.read("tensor/0001")[1:]
 
 
+def _model_of_zeros() -> bytes:
+    """The format-11 base's tensor model with every number 0: its class's poses decode to bones of
+    no direction (the class's basis has no mean of its own)."""
+    model = _base_tensor_model()
+    return TensorModel(np.zeros_like(model.mean), np.zeros_like(model.core),
+                       [np.zeros_like(factor) for factor in model.factors], model.core_step).encode()
+
+
+def _base_tensor_model() -> TensorModel:
+    """The format-11 base's tensor model (class 1)."""
+    with ArchiveReader(BASES["lossy_tensor"]) as reader:
+        return TensorModel.decode(reader.read("tensor/0001"), (448, 129, 2))  # 64_01's frames, pose values, subjects
+
+
 def _other_grid_model() -> bytes:
     """The format-11 base's tensor model with a third level on its one mode: not its class's grid."""
-    with ArchiveReader(BASES["lossy_tensor"]) as reader:
-        model = TensorModel.decode(reader.read("tensor/0001"), (448, 129, 2))  # 64_01's frames, pose values, subjects
+    model = _base_tensor_model()
     model.factors[2] = np.vstack([model.factors[2], model.factors[2][:1]])
     return model.encode()
 

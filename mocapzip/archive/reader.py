@@ -48,7 +48,7 @@ from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.motion.timewarp import path_of_moves
 from mocapzip.parallel import imap, one_blas_thread, thread_imap
 from mocapzip.progress import progress
-from mocapzip.representations.positions import flips_from_ranges
+from mocapzip.representations.positions import DegeneratePose, flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
 
 
@@ -202,6 +202,11 @@ class Archive:
                     raise ValueError(f"decoded poses beyond +-{MAX_ABS_POSE:g}, or not numbers")
                 twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
                 tail = self._decode_tail(row["skeleton"], layout)
+                try:
+                    tail.decoder.check_directions(poses)
+                except DegeneratePose as exc:
+                    raise ArchiveError(f"clip/{index:05d} ({row['path']}): damaged (class {row['class']}'s model and basis "
+                                       f"decode to a degenerate pose: {exc})", self.path) from None
                 values = tail.decode(poses, root, twist)
                 if "planted_stances" in row:
                     name = f"plant/{index:05d}"
