@@ -66,3 +66,19 @@ def test_a_chain_up_to_the_bone_limit_is_read(specials):
     result = run_limited(root / "chain_up_to_the_bone_limit", "inspect", "--json", ".")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["total"]["frames"] == 148
+
+
+@pytest.mark.parametrize("command", [["inspect"], ["compress", "--lossless", "-o", "db.mcz"], ["convert", "-o", "out"]])
+def test_a_link_to_a_device_named_on_the_command_line_is_refused_as_a_device(tmp_path, command):
+    """A link to /dev/zero given as a file was refused as "symbolic link loop or dangling symbolic
+    link": the link test came before the test of what it points to (found in a folder, it was
+    refused as a device already)."""
+    (tmp_path / "zero.bvh").symlink_to("/dev/zero")
+    os.mkfifo(tmp_path / "pipe.amc")
+    os.symlink("pipe.amc", tmp_path / "pipe_link.amc")
+    for name, kind in (("zero.bvh", "a character device (/dev/zero)"), ("pipe_link.amc", "a named pipe (FIFO)")):
+        result = run_limited(tmp_path, command[0], name, *command[1:])
+        lines = result.stderr.splitlines()
+        assert result.returncode == 1 and len(lines) == 1, result.stderr
+        assert lines[0].startswith(f"mcz: error: {name}: not a regular file: {kind}"), lines[0]  # and where it links
+    assert sorted(os.listdir(tmp_path)) == ["pipe.amc", "pipe_link.amc", "zero.bvh"]

@@ -69,10 +69,10 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
                     continue  # a skeleton named on the command line pairs by folder below
                 raise MocapFormatError(f"not a clip (expected the {' or '.join(clip_suffixes())} extension)", path)
             clips.append(ClipSource(path, None, path.name))
+        elif path.exists():  # before the link test: a link to a FIFO or a device is refused as one
+            check_regular_file(path.stat(), path)  # a FIFO or a device: refused, never opened
         elif path.is_symlink():
             raise MocapFormatError("symbolic link loop or dangling symbolic link", path)
-        elif path.exists():
-            check_regular_file(path.stat(), path)  # a FIFO or a device: refused, never opened
         else:
             raise MocapFormatError("no such file or directory", path)
     seen: dict[str, Path] = {}
