@@ -64,10 +64,21 @@ def check_regular_file(st: os.stat_result, path) -> None:
         raise MocapFormatError(f"not a regular file: {kind}", path)
 
 
-def read_regular_file(path) -> bytes:
-    """The bytes of `path`, opened by `open_regular_file`."""
+def read_regular_file(path, most: int, what: str) -> bytes:
+    """The bytes of `path`, opened by `open_regular_file`; MocapFormatError, before a byte is read,
+    if it is larger than `most` bytes (`what` it is, for the message): a sparse file of no disk
+    space can claim gigabytes, and the read would take that much memory."""
     with open_regular_file(path) as file:
-        return file.read()
+        check_size(os.fstat(file.fileno()).st_size, most, what, path)
+        data = file.read(most + 1)  # the file may have grown since
+    check_size(len(data), most, what, path)
+    return data
+
+
+def check_size(size: int, most: int, what: str, path) -> None:
+    """MocapFormatError if a file of `size` bytes is larger than `most`, the most `what` may have."""
+    if size > most:
+        raise MocapFormatError(f"file of {size:,} bytes is larger than the {most:,} bytes {what} may have", path)
 
 
 def open_regular_file(path) -> io.BufferedReader:

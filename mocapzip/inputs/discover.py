@@ -19,8 +19,9 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+from mocapzip.formats.asf import read_asf_bytes
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import check_regular_file, read_regular_file
+from mocapzip.formats.text import check_regular_file
 from mocapzip.inputs.registry import InputFormat, clip_format, clip_suffixes, input_formats
 
 
@@ -151,7 +152,7 @@ def _skeletons_in_folder(folder: Path, suffix: str) -> list[list[Path]]:
     groups: dict[bytes | Path, list[Path]] = {}
     for path in candidates:
         try:
-            key = read_regular_file(path).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+            key = read_asf_bytes(path).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
         except (OSError, MocapFormatError):
             key = path
         groups.setdefault(key, []).append(path)
