@@ -160,8 +160,9 @@ def check_text(data: bytes, path: str | None, what: str = "an ASCII Acclaim file
         raise MocapFormatError(f"UTF-16 text, not {what}", path, 1)
     head = data[:65536]
     if b"\x00" in head:
-        # ASCII stored as UTF-16 without a byte-order mark: every other byte is NUL.
-        utf16 = head[1::2].count(0) > len(head) // 4 or head[0::2].count(0) > len(head) // 4
+        # ASCII stored as UTF-16 without a byte-order mark: every other byte is NUL, the others not
+        # (text followed by NULs, as a disk full or a sparse file leaves it, has NULs at both)
+        utf16 = (head[1::2].count(0) > len(head) // 4) != (head[0::2].count(0) > len(head) // 4)
         kind = "UTF-16 text" if utf16 else "binary data (NUL bytes)"
         raise MocapFormatError(f"{kind}, not {what}", path, line_of_offset(data, data.index(b"\x00")))
     if not data or data.isspace():  # (strip() would copy the file)

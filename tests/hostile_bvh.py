@@ -186,6 +186,10 @@ REFUSED = [
     Refused("nul_byte", _base_with("JOINT Spine", "JOINT Sp\0ine"), "binary data (NUL bytes), not a text BVH file",
             _SPINE_LINE),
     Refused("utf16", "\ufeff" + bvh_text(BASE), "UTF-16 text, not a text BVH file", 1),
+    # NULs after the text (as a full disk or a sparse file leaves them), or alone: read as UTF-16 before
+    Refused("text_then_nuls", bvh_text(BASE) + "\0" * 100_000, "binary data (NUL bytes), not a text BVH file",
+            bvh_text(BASE).count("\n") + 1),
+    Refused("nuls_alone", "\0" * 1000, "binary data (NUL bytes), not a text BVH file", 1),
     Refused("trailing_text", bvh_text(BASE) + "hello world\n", "Frames: says 3, but 4 frame lines follow",
             _MOTION + 1),
     # a count of more digits than int() takes (4,300): a traceback in every command
