@@ -152,8 +152,12 @@ def _asf_hierarchy(bvh: Bvh, units: str | None) -> tuple[list[str], BvhSkeleton]
     """The ASF name of each of `bvh`'s joints (`_asf_names`), and the model of its hierarchy under
     those names (`motion.bvh_skeleton`), which its ASF is."""
     written = _asf_names(bvh.joints)
-    return written, bvh_skeleton([replace(joint, name=name) for joint, name in zip(bvh.joints, written)], units,
-                                 bvh.path)
+    try:
+        return written, bvh_skeleton([replace(joint, name=name) for joint, name in zip(bvh.joints, written)], units,
+                                     bvh.path)
+    except MocapFormatError:
+        bvh_skeleton(bvh.joints, units, bvh.path)  # the same refusal, naming the file's joints, not their ASF names
+        raise
 
 
 def _root_in_acclaim_order(channels: tuple[str, ...], values: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
