@@ -213,7 +213,7 @@ def number(word, path: str | None, line: int | None, *, what: str = "value") -> 
     """A finite float within MAX_ABS_VALUE, or MocapFormatError naming file and line."""
     raw = word.encode("latin-1", "replace") if isinstance(word, str) else bytes(word)
     if not NUMBER.match(raw):
-        shown = raw[:40].decode("latin-1")
+        shown = word[:40] if isinstance(word, str) else raw[:40].decode("latin-1")  # as read: not '?' for each letter
         lowered = shown.lower().lstrip("+-")
         if lowered in ("nan", "inf", "infinity"):
             raise MocapFormatError(f"{what} is not finite: {shown!r}", path, line)

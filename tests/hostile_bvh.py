@@ -135,6 +135,12 @@ def _no_channels(frame_line: str) -> str:
     return text.split("MOTION")[0] + "MOTION\nFrames: 3\nFrame Time: 0.033333\n" + f"{frame_line}\n" * 3
 
 
+def _first_value(token: str) -> str:
+    """BASE with the first value of its first frame written as `token`."""
+    head, _, frames = bvh_text(BASE).partition("Frame Time: 0.033333\n")
+    return f"{head}Frame Time: 0.033333\n{token}{frames[frames.index(' '):]}"
+
+
 REFUSED = [
     Refused("no_frames", bvh_text(Shape(person(), frames=0)), "no frames: Frames: 0", _MOTION + 1),
     Refused("frames_more_than_lines", bvh_text(Shape(person(), stated=4)), "Frames: says 4, but 3 frame lines follow",
@@ -214,6 +220,9 @@ REFUSED = [
     Refused("no_channels_and_blank_frames", _no_channels(""), "no joint has a CHANNELS line", 2),
     Refused("no_channels_and_frames_of_blanks", _no_channels("  \t"), "no joint has a CHANNELS line", 2),
     # a number of any length named in its first 40 characters: the line was as long as the number
+    # a number of letters other than ASCII digits, quoted as read (each was a '?')
+    Refused("value_of_arabic_indic_digits", _first_value("\u0661\u0662"), "not a number: '\u0661\u0662'",
+            _MOTION + 3),
     Refused("offset_of_900_digits", _base_with("OFFSET 0 20 0", "OFFSET 0 " + "9" * 900 + " 0"),
             f"OFFSET {'9' * 40}... is out of range", 8),
 ]
