@@ -109,6 +109,15 @@ def check_folders(folders) -> None:
                 raise MocapFormatError(f"not a folder but {kind}: files cannot be written under it", path)
 
 
+def check_not_folders(paths) -> None:
+    """MocapFormatError naming the first of `paths`, files to be written, that is a folder: no file
+    can be renamed over it, and it is not what -f/--force replaces. Checked before any file is written."""
+    for path in paths:
+        if os.path.isdir(path) and not os.path.islink(path):
+            raise MocapFormatError("is a folder: a file cannot be written in its place (-f replaces files, not "
+                                   "folders)", path)
+
+
 def check_inside(root, paths) -> None:
     """MocapFormatError naming the first of `paths` whose folder resolves outside the folder `root`
     through a symbolic link already there (`root` itself may be one): a link planted in an output
@@ -140,7 +149,7 @@ def write_file_atomically(path: Path, *blocks: bytes) -> None:
         os.replace(tmp, path)
     except BaseException as exc:
         tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError) and exc.errno and exc.filename is None:  # e.g. a full disk: name the file
+        if isinstance(exc, OSError) and exc.errno and exc.filename != os.fspath(path):  # a full disk: name the file
             raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
         raise
 
