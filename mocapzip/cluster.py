@@ -94,6 +94,7 @@ def on_cluster(address: str, dashboard: bool = False):
     stopped after; its dashboard on this machine only). Yields the `Cluster`. Dask's own log
     lines are silenced meanwhile: what goes wrong ends the run with one line (`ClusterError`)."""
     workers, scheduler = parse_address(address)
+    handshaken = False  # the peer answered a Dask handshake (tcp:// alone is checked): it may still answer wrongly
     try:
         import dask
         import distributed
@@ -108,6 +109,7 @@ def on_cluster(address: str, dashboard: bool = False):
             raise ClusterError(f"the Dask scheduler at {scheduler} cannot be reached ({exc})") from None
         if distributed.comm.parse_address(scheduler)[0] == "tcp":
             _check_handshake(scheduler, host, port, CONNECT_TIMEOUT_S)
+            handshaken = True
     with _blas_variables_kept(), _dask_logs_quiet():
         local = client = None
         try:
@@ -129,7 +131,7 @@ def on_cluster(address: str, dashboard: bool = False):
             elif isinstance(exc, MemoryError):  # Dask read a size from the peer's bytes: not Dask's messages
                 message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, bytes Dask read as "
                            "a message size past memory)")
-            elif local is None and not isinstance(exc, (OSError, TimeoutError)):  # answers no scheduler gives
+            elif handshaken and not isinstance(exc, (OSError, TimeoutError)):  # answers no scheduler gives
                 message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, Dask read its answers "
                            f"as {_one_line(exc)})")
             del exc

@@ -249,3 +249,18 @@ def test_a_malformed_dask_address_is_a_usage_error(shared_data, tmp_path, addres
     assert run.stderr.startswith("mcz compress: Invalid value for '--dask': "), run.stderr
     assert run.stderr.count("\n") == 1 and len(run.stderr) < 300
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scheme_whose_handshake_mcz_does_not_check_is_not_blamed_on_the_peer(shared_data, tmp_path):
+    """Only tcp:// peers have their handshake checked. A tls:// address (no TLS configured here)
+    was refused as "not a Dask scheduler (after its handshake, ...)": no handshake had been made,
+    and the peer was not at fault."""
+    out = tmp_path / "out"
+    out.mkdir()
+    with peer(*PEERS["silent"]) as address:
+        tls = address.replace("tcp://", "tls://")
+        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", tls, "-q",
+                      setup=SHORT_TIMEOUT)
+    assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert run.stderr.startswith(f"mcz: error: the Dask scheduler at {tls} cannot be reached ("), run.stderr
+    assert list(out.iterdir()) == []

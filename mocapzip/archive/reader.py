@@ -37,7 +37,7 @@ from mocapzip.codec.patches import FramePatches, channel_steps
 from mocapzip.formats.amc import AmcStyle, Motion
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader, parse_json
-from mocapzip.formats.text import (MAX_ABS_VALUE, check_folders, check_inside, in_value_range,
+from mocapzip.formats.text import (MAX_ABS_VALUE, check_folders, check_inside, check_not_folders, in_value_range,
                                    write_file_atomically)
 from mocapzip.inputs.registry import InputFormat, stored_format
 from mocapzip.legacy import Format
@@ -438,6 +438,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
                    if (index in chosen if kind == "motion" else PurePosixPath(path).parent in folders)}
         check_inside(out, targets)
         check_folders(path.parent for path in targets)
+        check_not_folders(targets)
         existing = [p for p in targets if os.path.lexists(p)]
         if existing and not force:
             raise FileExistsError(None, "already exists", os.fspath(existing[0]))
