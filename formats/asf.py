@@ -28,7 +28,8 @@ import numpy as np
 
 from mocapzip.limits import MAX_BONES_PER_SKELETON
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import decode_text, integer, number, read_regular_file, split_lines, stated_frame_rate
+from mocapzip.formats.text import (check_size, decode_text, integer, number, read_regular_file, split_lines,
+                                   stated_frame_rate)
 
 __all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "format_asf", "write_asf"]
 
@@ -43,6 +44,7 @@ NAMED_LENGTHS = {"m": 100.0, "meter": 100.0, "meters": 100.0, "metre": 100.0, "m
                  "mm": 0.1, "millimeter": 0.1, "millimeters": 0.1, "millimetre": 0.1, "millimetres": 0.1,
                  "in": 2.54, "inch": 2.54, "inches": 2.54}
 MAX_BONE_CM = 1e4  # 100 m; the longest bone of the shared data is 50 cm
+MAX_ASF_BYTES = 1 << 24  # 16 MiB, refused unread: 1,024 bones take about 200 KB, the shared files at most 7 KB
 
 
 @dataclass
@@ -124,14 +126,19 @@ class Skeleton:
 def read_asf(path: str | os.PathLike) -> Skeleton:
     """Parse an ASF file; raise MocapFormatError naming file and line on bad input."""
     path = os.fspath(path)
-    data = read_regular_file(path)
-    return _AsfParser(split_lines(decode_text(data, path)), path, stacklevel=4).parse()
+    return _AsfParser(split_lines(decode_text(read_asf_bytes(path), path)), path, stacklevel=4).parse()
+
+
+def read_asf_bytes(path: str | os.PathLike) -> bytes:
+    """The bytes of the ASF file at `path`, at most MAX_ASF_BYTES (MocapFormatError, unread, if more)."""
+    return read_regular_file(path, MAX_ASF_BYTES, "an ASF file")
 
 
 def parse_asf(data: bytes, path: str | None = None) -> Skeleton:
     """Parse ASF bytes (`path` only names the source in messages and in `Skeleton.path`)."""
     if isinstance(data, str):
         data = data.encode("utf-8")
+    check_size(len(data), MAX_ASF_BYTES, "an ASF file", path)
     return _AsfParser(split_lines(decode_text(data, path)), path, stacklevel=4).parse()
 
 

@@ -29,9 +29,9 @@ import numpy as np
 from mocapzip.formats.bvh_compiled import format_rows, scan_lines
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.numbers_compiled import with_numbers
-from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, VALUES_PER_BLOCK, check_text,
-                                   detect_encoding, number, open_regular_file, read_regular_file, split_lines,
-                                   whole_number)
+from mocapzip.formats.text import (MAX_ABS_VALUE, MAX_FRAME_RATE, MIN_FRAME_RATE, VALUES_PER_BLOCK, check_size,
+                                   check_text, detect_encoding, number, open_regular_file, read_regular_file,
+                                   split_lines, whole_number)
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_FRAMES_PER_CLIP, MAX_VALUES_PER_CLIP
 
 CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
@@ -39,6 +39,10 @@ _CHANNEL_NAMES = {name.lower(): name for name in CHANNELS}
 MAX_HIERARCHY_CHARS = 1 << 20  # the text before MOTION: a 1,024-joint skeleton takes about 200 KB
 MAX_HIERARCHY_DEPTH = 200  # joints within joints (a human: about 10; each level is a Python call)
 MAX_MOTION_CHARS = 4096  # the lines MOTION, Frames: and Frame Time: together, as an archive keeps them (a clip's)
+# Larger files are refused unread (and so are such bytes, which convert reads back): a hierarchy (4
+# bytes a character at most), the MOTION lines, and frames of 25 bytes a value, the longest number a
+# style writes (`repr`: -1.2345678901234567e-05) and a blank, with room to spare (shared files: 9.7).
+MAX_BVH_BYTES = 4 * (MAX_HIERARCHY_CHARS + MAX_MOTION_CHARS) + 25 * MAX_VALUES_PER_CLIP
 _WHAT = "a text BVH file"  # what `check_text` says the file should have been
 # tried in this order (`_style_of`)
 NUMBER_STYLES = ("repr", "g6", "g7", "g8", "g9", "g10", "g15", "g17", "f6", "f3", "f4", "f5", "f7", "f8", "f9")
@@ -148,11 +152,12 @@ def joint_columns(joints: list[BvhJoint]) -> list[tuple[int, str]]:
 
 def read_bvh(path: str | os.PathLike) -> Bvh:
     """Read and check the BVH file at `path` (MocapFormatError with file and line on any fault)."""
-    return parse_bvh(read_regular_file(path), os.fspath(path))
+    return parse_bvh(read_regular_file(path, MAX_BVH_BYTES, "a BVH file"), os.fspath(path))
 
 
 def parse_bvh(data: bytes, path: str | None = None) -> Bvh:
     """A BVH file's bytes -> Bvh; see the module doc for what is checked."""
+    check_size(len(data), MAX_BVH_BYTES, "a BVH file", path)
     data = check_text(data, path, _WHAT)
     encoding = detect_encoding(data)
     text = data.decode(encoding)

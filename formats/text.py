@@ -64,10 +64,21 @@ def check_regular_file(st: os.stat_result, path) -> None:
         raise MocapFormatError(f"not a regular file: {kind}", path)
 
 
-def read_regular_file(path) -> bytes:
-    """The bytes of `path`, opened by `open_regular_file`."""
+def read_regular_file(path, most: int, what: str) -> bytes:
+    """The bytes of `path`, opened by `open_regular_file`; MocapFormatError, before a byte is read,
+    if it is larger than `most` bytes (`what` it is, for the message): a sparse file of no disk
+    space can claim gigabytes, and the read would take that much memory."""
     with open_regular_file(path) as file:
-        return file.read()
+        check_size(os.fstat(file.fileno()).st_size, most, what, path)
+        data = file.read(most + 1)  # the file may have grown since
+    check_size(len(data), most, what, path)
+    return data
+
+
+def check_size(size: int, most: int, what: str, path) -> None:
+    """MocapFormatError if a file of `size` bytes is larger than `most`, the most `what` may have."""
+    if size > most:
+        raise MocapFormatError(f"file of {size:,} bytes is larger than the {most:,} bytes {what} may have", path)
 
 
 def open_regular_file(path) -> io.BufferedReader:
@@ -96,6 +107,15 @@ def check_folders(folders) -> None:
             if os.path.lexists(path) and not os.path.isdir(path):
                 kind = "a symbolic link to nothing" if os.path.islink(path) else "a file"
                 raise MocapFormatError(f"not a folder but {kind}: files cannot be written under it", path)
+
+
+def check_not_folders(paths) -> None:
+    """MocapFormatError naming the first of `paths`, files to be written, that is a folder: no file
+    can be renamed over it, and it is not what -f/--force replaces. Checked before any file is written."""
+    for path in paths:
+        if os.path.isdir(path) and not os.path.islink(path):
+            raise MocapFormatError("is a folder: a file cannot be written in its place (-f replaces files, not "
+                                   "folders)", path)
 
 
 def check_inside(root, paths) -> None:
@@ -129,7 +149,7 @@ def write_file_atomically(path: Path, *blocks: bytes) -> None:
         os.replace(tmp, path)
     except BaseException as exc:
         tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError) and exc.errno and exc.filename is None:  # e.g. a full disk: name the file
+        if isinstance(exc, OSError) and exc.errno and exc.filename != os.fspath(path):  # a full disk: name the file
             raise OSError(exc.errno, os.strerror(exc.errno), os.fspath(path)) from exc
         raise
 
@@ -149,8 +169,9 @@ def check_text(data: bytes, path: str | None, what: str = "an ASCII Acclaim file
         raise MocapFormatError(f"UTF-16 text, not {what}", path, 1)
     head = data[:65536]
     if b"\x00" in head:
-        # ASCII stored as UTF-16 without a byte-order mark: every other byte is NUL.
-        utf16 = head[1::2].count(0) > len(head) // 4 or head[0::2].count(0) > len(head) // 4
+        # ASCII stored as UTF-16 without a byte-order mark: every other byte is NUL, the others not
+        # (text followed by NULs, as a disk full or a sparse file leaves it, has NULs at both)
+        utf16 = (head[1::2].count(0) > len(head) // 4) != (head[0::2].count(0) > len(head) // 4)
         kind = "UTF-16 text" if utf16 else "binary data (NUL bytes)"
         raise MocapFormatError(f"{kind}, not {what}", path, line_of_offset(data, data.index(b"\x00")))
     if not data or data.isspace():  # (strip() would copy the file)
@@ -201,7 +222,7 @@ def number(word, path: str | None, line: int | None, *, what: str = "value") -> 
     """A finite float within MAX_ABS_VALUE, or MocapFormatError naming file and line."""
     raw = word.encode("latin-1", "replace") if isinstance(word, str) else bytes(word)
     if not NUMBER.match(raw):
-        shown = raw[:40].decode("latin-1")
+        shown = word[:40] if isinstance(word, str) else raw[:40].decode("latin-1")  # as read: not '?' for each letter
         lowered = shown.lower().lstrip("+-")
         if lowered in ("nan", "inf", "infinity"):
             raise MocapFormatError(f"{what} is not finite: {shown!r}", path, line)

@@ -51,7 +51,14 @@ from mocapzip.progress import progress
 # start remote workers without it.
 LOCAL_WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 CONNECT_TIMEOUT_S = 20  # to reach a scheduler given by address and have its handshake, however the peer behaves
-LOCAL_WORKERS_PER_CORE = 4  # `local:N`: at most this many worker processes per core of this machine
+# `local:N`: at most this many worker processes per core of this machine. A task is CPU-bound and a worker
+# runs one at a time, so more gain nothing; each costs its process, and this process's address space grows
+# by about 0.2 GB a worker (glibc's arena of each nanny's thread): 0.96 GB at local:1, 1.66 GB at local:8.
+LOCAL_WORKERS_PER_CORE = 1
+# A run's tasks may go this long with none finished before mcz asks the scheduler whether a worker is
+# running one; a scheduler that does not answer, or has none running, ends the run (a peer that took the
+# tasks and never ran them hung it for ever). Dask's config `mcz.stall-timeout` sets it (docs/cluster.md).
+STALL_TIMEOUT_S = 300
 HANDSHAKE_MAX_BYTES = 1 << 16  # a scheduler's first message, its handshake, takes about 60 bytes
 SMALLEST_WINDOW_PER_WORKER = 4  # imap's items in flight per worker, at least: enough to keep each one busy
 ONE_LINE_CHARS = 200  # of an error's message that Dask raised, in mcz's one line
@@ -87,6 +94,7 @@ def on_cluster(address: str, dashboard: bool = False):
     stopped after; its dashboard on this machine only). Yields the `Cluster`. Dask's own log
     lines are silenced meanwhile: what goes wrong ends the run with one line (`ClusterError`)."""
     workers, scheduler = parse_address(address)
+    handshaken = False  # the peer answered a Dask handshake (tcp:// alone is checked): it may still answer wrongly
     try:
         import dask
         import distributed
@@ -101,6 +109,7 @@ def on_cluster(address: str, dashboard: bool = False):
             raise ClusterError(f"the Dask scheduler at {scheduler} cannot be reached ({exc})") from None
         if distributed.comm.parse_address(scheduler)[0] == "tcp":
             _check_handshake(scheduler, host, port, CONNECT_TIMEOUT_S)
+            handshaken = True
     with _blas_variables_kept(), _dask_logs_quiet():
         local = client = None
         try:
@@ -117,10 +126,12 @@ def on_cluster(address: str, dashboard: bool = False):
                     opened.close()
             what = "has no workers" if client is not None else "cannot be reached"
             message = f"the Dask scheduler at {scheduler} {what} ({_one_line(exc)})"
-            if isinstance(exc, MemoryError):  # Dask read a size from the peer's bytes: not Dask's messages
+            if workers is not None and local is None:  # its scheduler or a worker's process did not start
+                message = f"--dask {address}: the local cluster could not start ({_one_line(exc)})"
+            elif isinstance(exc, MemoryError):  # Dask read a size from the peer's bytes: not Dask's messages
                 message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, bytes Dask read as "
                            "a message size past memory)")
-            elif local is None and not isinstance(exc, (OSError, TimeoutError)):  # answers no scheduler gives
+            elif handshaken and not isinstance(exc, (OSError, TimeoutError)):  # answers no scheduler gives
                 message = (f"--dask {scheduler}: not a Dask scheduler (after its handshake, Dask read its answers "
                            f"as {_one_line(exc)})")
             del exc
@@ -369,11 +380,50 @@ class Cluster:
             return self.client.submit(_returned, blob, key=f"state-{state_id}", pure=False), state_id
 
     def _outcome(self, future):
+        """The task's result, waiting as long as the cluster makes progress (`_check_progress`)."""
         try:
-            return future.result()
+            while True:
+                done = self.done
+                try:
+                    return future.result(timeout=self.stall_timeout)
+                except TimeoutError:
+                    if self.done == done:
+                        self._check_progress()
+        except ClusterError:
+            raise
         except Exception as exc:  # the task's own errors come back as values (`parallel._call`): this is Dask's
             detail = str(exc).split(". ")[0].splitlines()[0] if str(exc) else "no detail"
             raise ClusterError(f"the Dask cluster could not run a task ({type(exc).__name__}: {detail})") from None
+
+    @property
+    def stall_timeout(self) -> float:
+        """Seconds without a finished task before `_check_progress`: Dask's config `mcz.stall-timeout`
+        (environment: DASK_MCZ__STALL_TIMEOUT), else STALL_TIMEOUT_S."""
+        import dask
+        from dask.utils import parse_timedelta
+
+        given = dask.config.get("mcz.stall-timeout", STALL_TIMEOUT_S)
+        try:
+            seconds = parse_timedelta(given, default="seconds")
+        except (TypeError, ValueError, KeyError):
+            seconds = None
+        if seconds is None or not 0 < seconds < 1e9:
+            raise ClusterError(f"Dask's config mcz.stall-timeout: {str(given)[:40]!r} is not a time such as 300 or '5m'")
+        return seconds
+
+    def _check_progress(self) -> None:
+        """ClusterError unless the scheduler says, within CONNECT_TIMEOUT_S, that a worker is running a
+        task (this run's or another's: a shared scheduler may run others' first)."""
+        address, waited = self.client.scheduler.address, f"{self.stall_timeout:g} s"
+        try:
+            processing = self.client.sync(self.client.scheduler.processing, workers=None,
+                                          callback_timeout=CONNECT_TIMEOUT_S)
+        except Exception as exc:  # a peer that stopped answering, or answers what no scheduler does
+            raise ClusterError(f"the Dask scheduler at {address} finished no task in {waited} and did not say what "
+                               f"its workers are doing ({_one_line(exc)})") from None
+        if not isinstance(processing, dict) or not any(processing.values()):
+            raise ClusterError(f"the Dask scheduler at {address} finished no task in {waited} and none is running "
+                               "(mcz.stall-timeout, docs/cluster.md)")
 
     def _done(self, future) -> None:
         with self._lock:

@@ -57,7 +57,7 @@ from mocapzip.formats.amc import MAX_AMC_BYTES, AmcStyle, Motion, format_amc, pa
 from mocapzip.formats.asf import ROOT, Bone, Skeleton, format_asf, parse_asf
 from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, parse_bvh, read_bvh
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import NUMBER, check_folders, check_inside, write_file_atomically
+from mocapzip.formats.text import NUMBER, check_folders, check_inside, check_not_folders, write_file_atomically
 from mocapzip.inputs.clip import ClipReader, clip_frame_rate
 from mocapzip.inputs.discover import find_clips, no_clips, record_skip
 from mocapzip.inputs.registry import AMC, BVH
@@ -152,8 +152,12 @@ def _asf_hierarchy(bvh: Bvh, units: str | None) -> tuple[list[str], BvhSkeleton]
     """The ASF name of each of `bvh`'s joints (`_asf_names`), and the model of its hierarchy under
     those names (`motion.bvh_skeleton`), which its ASF is."""
     written = _asf_names(bvh.joints)
-    return written, bvh_skeleton([replace(joint, name=name) for joint, name in zip(bvh.joints, written)], units,
-                                 bvh.path)
+    try:
+        return written, bvh_skeleton([replace(joint, name=name) for joint, name in zip(bvh.joints, written)], units,
+                                     bvh.path)
+    except MocapFormatError:
+        bvh_skeleton(bvh.joints, units, bvh.path)  # the same refusal, naming the file's joints, not their ASF names
+        raise
 
 
 def _root_in_acclaim_order(channels: tuple[str, ...], values: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
@@ -231,6 +235,7 @@ def convert(inputs, output, asf=None, units: str | None = None, force: bool = Fa
             plans[target] = source
     check_inside(out, (out / target for target in plans))
     check_folders((out / target).parent for target in plans)
+    check_not_folders(out / target for target in plans)
     inputs_read = {os.path.realpath(p) for s in sources for p in (s.motion, s.skeleton) if p is not None}
     for target in plans:
         path = out / target

@@ -312,6 +312,13 @@ def cases(watched: Path) -> list[Case]:
         ("header_not_a_comment", _set("clips.0.header", ["hello"]), "meta: clips[0].header[0]"),
         ("digits_99", _set("clips.0.style.digits", 99), "meta: clips[0].style.digits"),
         ("newline_tab", _set("clips.0.style.newline", "\t"), "meta: clips[0].style.newline"),
+        # written verbatim between each bone's name and its values: blanks or tabs, 1 to 16
+        ("name_separator_ideographic_space", _set("clips.0.style.name_separator", "\u3000"),
+         "meta: clips[0].style.name_separator"),
+        ("name_separator_17_blanks", _set("clips.0.style.name_separator", " " * 17),
+         "meta: clips[0].style.name_separator"),
+        ("name_separator_with_a_line_end", _set("clips.0.style.name_separator", " \n"),
+         "meta: clips[0].style.name_separator"),
         ("unknown_row_field", _set("clips.0.evil", 1), "meta: clips[0]"),
         ("twist_flips_beyond_clip", _set("clips.0.twist_flips", {"rthumb": [0, 10**6]}), "meta: clips[0].twist_flips"),
         ("auto_coder_in_lossy", _set("settings.coefficient_coder", "auto"), "meta: settings.coefficient_coder"),
@@ -442,6 +449,15 @@ def cases(watched: Path) -> list[Case]:
          "meta: clips[0].bvh.motion", False),
         ("bvh_style_with_a_frame_in_it", _set("clips.0.bvh.style.after", "\n1 2 3\n"), "meta: clips[0].bvh.style",
          False),
+        # the style's text fields are written verbatim into each frame line: only the blanks the spec names
+        ("bvh_trailing_with_a_line_end", _set("clips.0.bvh.style.trailing", " \n"),
+         "meta: clips[0].bvh.style.trailing", False),
+        ("bvh_trailing_17_blanks", _set("clips.0.bvh.style.trailing", " " * 17), "meta: clips[0].bvh.style.trailing",
+         False),
+        ("bvh_trailing_form_feed", _set("clips.0.bvh.style.trailing", "\t\x0c"), "meta: clips[0].bvh.style.trailing",
+         False),
+        ("bvh_after_unicode_line_separator", _set("clips.0.bvh.style.after", "\u2028"),
+         "meta: clips[0].bvh.style.after", False),
         ("bvh_hierarchy_without_its_line_end", _skeleton_0(lambda: _bvh_hierarchy().rstrip()), "skeletons: skeleton 0",
          True),
         ("bvh_hierarchy_1000_deep", _skeleton_0(lambda: _deep_hierarchy(1000)), "skeletons: skeleton 0", True),
@@ -477,6 +493,7 @@ def cases(watched: Path) -> list[Case]:
         ("tensor_model_of_no_mode", _stream("tensor/0001", _model_of_no_mode), "tensor/0001", True),
         ("tensor_model_of_another_grid", _stream("tensor/0001", _other_grid_model), "tensor/0001", True),
         ("tensor_model_damaged", _stream("tensor/0001", b"\x01\x05"), "tensor/0001", True),
+        ("tensor_model_of_zeros", _stream("tensor/0001", _model_of_zeros), "class 1's model", True),
         ("warp_move_not_a_move", _stream("warp/00000", lambda: entropy.encode_bytes(bytes([3]) * 200)), "warp/00000",
          True),
         ("warp_path_ends_short", _stream("warp/00000", lambda: entropy.encode_bytes(bytes([2]) * 3)), "warp/00000",
@@ -493,10 +510,23 @@ def _model_of_no_mode() -> bytes:
         return bytes([0]) + reader.read("tensor/0001")[1:]
 
 
+def _model_of_zeros() -> bytes:
+    """The format-11 base's tensor model with every number 0: its class's poses decode to bones of
+    no direction (the class's basis has no mean of its own)."""
+    model = _base_tensor_model()
+    return TensorModel(np.zeros_like(model.mean), np.zeros_like(model.core),
+                       [np.zeros_like(factor) for factor in model.factors], model.core_step).encode()
+
+
+def _base_tensor_model() -> TensorModel:
+    """The format-11 base's tensor model (class 1)."""
+    with ArchiveReader(BASES["lossy_tensor"]) as reader:
+        return TensorModel.decode(reader.read("tensor/0001"), (448, 129, 2))  # 64_01's frames, pose values, subjects
+
+
 def _other_grid_model() -> bytes:
     """The format-11 base's tensor model with a third level on its one mode: not its class's grid."""
-    with ArchiveReader(BASES["lossy_tensor"]) as reader:
-        model = TensorModel.decode(reader.read("tensor/0001"), (448, 129, 2))  # 64_01's frames, pose values, subjects
+    model = _base_tensor_model()
     model.factors[2] = np.vstack([model.factors[2], model.factors[2][:1]])
     return model.encode()
 

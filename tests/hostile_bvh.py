@@ -135,6 +135,18 @@ def _no_channels(frame_line: str) -> str:
     return text.split("MOTION")[0] + "MOTION\nFrames: 3\nFrame Time: 0.033333\n" + f"{frame_line}\n" * 3
 
 
+def _frame_lines(edit) -> str:
+    """BASE with its frame lines `edit`ed (a list of lines in, a list out)."""
+    head, _, frames = bvh_text(BASE).partition("Frame Time: 0.033333\n")
+    return f"{head}Frame Time: 0.033333\n" + "\n".join(edit(frames.splitlines())) + "\n"
+
+
+def _first_value(token: str) -> str:
+    """BASE with the first value of its first frame written as `token`."""
+    head, _, frames = bvh_text(BASE).partition("Frame Time: 0.033333\n")
+    return f"{head}Frame Time: 0.033333\n{token}{frames[frames.index(' '):]}"
+
+
 REFUSED = [
     Refused("no_frames", bvh_text(Shape(person(), frames=0)), "no frames: Frames: 0", _MOTION + 1),
     Refused("frames_more_than_lines", bvh_text(Shape(person(), stated=4)), "Frames: says 4, but 3 frame lines follow",
@@ -186,6 +198,10 @@ REFUSED = [
     Refused("nul_byte", _base_with("JOINT Spine", "JOINT Sp\0ine"), "binary data (NUL bytes), not a text BVH file",
             _SPINE_LINE),
     Refused("utf16", "\ufeff" + bvh_text(BASE), "UTF-16 text, not a text BVH file", 1),
+    # NULs after the text (as a full disk or a sparse file leaves them), or alone: read as UTF-16 before
+    Refused("text_then_nuls", bvh_text(BASE) + "\0" * 100_000, "binary data (NUL bytes), not a text BVH file",
+            bvh_text(BASE).count("\n") + 1),
+    Refused("nuls_alone", "\0" * 1000, "binary data (NUL bytes), not a text BVH file", 1),
     Refused("trailing_text", bvh_text(BASE) + "hello world\n", "Frames: says 3, but 4 frame lines follow",
             _MOTION + 1),
     # a count of more digits than int() takes (4,300): a traceback in every command
@@ -210,6 +226,36 @@ REFUSED = [
     Refused("no_channels_and_blank_frames", _no_channels(""), "no joint has a CHANNELS line", 2),
     Refused("no_channels_and_frames_of_blanks", _no_channels("  \t"), "no joint has a CHANNELS line", 2),
     # a number of any length named in its first 40 characters: the line was as long as the number
+    # a number of letters other than ASCII digits, quoted as read (each was a '?')
+    Refused("value_of_arabic_indic_digits", _first_value("\u0661\u0662"), "not a number: '\u0661\u0662'",
+            _MOTION + 3),
+    # the fifth hostile pass: numbers Python's float() and int() take but the grammar does not, and
+    # lines that repeat, or come where none may
+    Refused("value_with_an_underscore", _first_value("1_0"), "not a number: '1_0'", _MOTION + 3),
+    Refused("frames_an_arabic_indic_digit", _base_with("Frames: 3", "Frames: \u0663"), "Frames: must be a count",
+            _MOTION + 1),
+    Refused("frames_and_a_word", _base_with("Frames: 3", "Frames: 3 frames"), "got '3 frames'", _MOTION + 1),
+    Refused("frame_time_with_a_comma", _base_with("Frame Time: 0.033333", "Frame Time: 0,033333"),
+            "not a number: '0,033333'", _MOTION + 2),
+    Refused("frame_time_twice", _base_with("Frame Time: 0.033333", "Frame Time: 0.033333 0.04"),
+            "not a number: '0.033333 0.04'", _MOTION + 2),
+    Refused("frame_time_just_above_a_second", _base_with("Frame Time: 0.033333", "Frame Time: 1.0000000001"),
+            "Frame Time must be from", _MOTION + 2),
+    Refused("one_frame_of_one_value_more", _frame_lines(lambda lines: [lines[0], lines[1] + " 1.0", lines[2]]),
+            "frame 2 has 13 values, the hierarchy's channels need 12", _MOTION + 4),
+    Refused("blank_line_between_frames", _frame_lines(lambda lines: [lines[0], "", *lines[1:]]),
+            "Frames: says 3, but 4 frame lines follow", _MOTION + 1),
+    Refused("offset_of_four_numbers", _base_with("OFFSET 0 20 0", "OFFSET 0 20 0 5"), "unexpected '5' in joint",
+            _SPINE_LINE + 2),
+    Refused("channels_twice", _base_with("CHANNELS 3 Zrotation Xrotation Yrotation",
+                                         "CHANNELS 3 Zrotation Xrotation Yrotation\n    CHANNELS 1 Xrotation"),
+            "joint 'Spine' has a second CHANNELS line", _SPINE_LINE + 4),
+    Refused("end_site_twice", _base_with("End Site", "End Site\n      {\n        OFFSET 0 1 0\n      }\n"
+                                                     "      End Site"), "joint 'Head' has a second End Site", 18),
+    Refused("comment_in_the_hierarchy", _base_with("  JOINT Spine", "# a comment\n  JOINT Spine"), "unexpected '#'",
+            _SPINE_LINE),
+    Refused("name_with_a_next_line_character", _base_with("JOINT Spine", "JOINT Sp\x85ine"), "expected '{', got 'ine'",
+            _SPINE_LINE),  # U+0085 splits words as str.split() does
     Refused("offset_of_900_digits", _base_with("OFFSET 0 20 0", "OFFSET 0 " + "9" * 900 + " 0"),
             f"OFFSET {'9' * 40}... is out of range", 8),
 ]
@@ -240,6 +286,14 @@ ACCEPTED = {
     # a CR CR LF where a blank line may stand: the hierarchy, after the last frame
     "cr_cr_lf_in_the_hierarchy": _line_ends("\r\r\n", "\r\n", "\r\n", "\r\n"),
     "cr_cr_lf_after_the_last_frame": _line_ends("\n", "\n", "\n", "\r\r\n"),
+    # the fifth hostile pass
+    "blank_lines_and_blanks_before_the_hierarchy": "\n\n   " + bvh_text(BASE),
+    "end_site_in_lower_case": _base_with("End Site", "end site"),
+    "crlf_then_lf": bvh_text(BASE).replace("\n", "\r\n", 10),
+    "name_with_an_escape_of_a_slash": _base_with("JOINT Spine", "JOINT a%2Fb"),
+    "frames_and_frame_time_without_blanks": _base_with("Frames: 3\nFrame Time: 0.033333",
+                                                       "Frames:3\nFrame Time:0.033333"),
+    "frame_time_of_a_second": _base_with("Frame Time: 0.033333", "Frame Time: 1"),
 }
 
 

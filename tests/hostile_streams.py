@@ -340,6 +340,20 @@ def _tensor_cases() -> list[Case]:
              may_decode=True),
         Case("tensor_class_called_pca", "tensor", _set("classes.0.model", "pca"), "meta: classes[0]"),
         Case("tensor_class_without_levels", "tensor", _delete("classes.0.levels"), "meta: classes[0]"),
+        # the fifth hostile pass
+        Case("tensor_mode_named_twice", "tensor", _set("classes.0.modes", ["actor", "actor"]),
+             "meta: classes[0].modes: a mode named twice"),
+        Case("tensor_level_named_twice", "tensor", _levels(lambda levels: levels[0].__setitem__(1, levels[0][0])),
+             "meta: classes[0].levels[0]: a level of mode 'actor' named twice"),
+        Case("tensor_at_of_floats", "tensor", _set("clips.0.tensor_at", [0.0, 0.0]), "meta: clips[0].tensor_at[0]"),
+        Case("tensor_at_of_bools", "tensor", _set("clips.0.tensor_at", [False, False]), "meta: clips[0].tensor_at[0]"),
+        Case("tensor_at_2_63", "tensor", _set("clips.0.tensor_at", [2**63, 0]), "meta: clips[0].tensor_at"),
+        Case("tensor_at_of_one_mode", "tensor", _set("clips.0.tensor_at", [0]), "meta: clips[0].tensor_at"),
+        Case("tensor_modes_not_a_regular_expression", "tensor", _set("settings.modes", "(?P<actor"),
+             "meta: settings.modes"),
+        Case("tensor_modes_of_no_group", "tensor", _set("settings.modes", "(a+)+$"), "meta: settings.modes"),
+        Case("tensor_class_of_no_component", "tensor", _set("classes.0.components", 0), "meta: classes[0].components"),
+        Case("tensor_clip_streams_of_two_clips_swapped", "tensor", _swapped("clip/00000", "clip/00002"), "clip/00000"),
     ]
     return c
 
@@ -364,6 +378,7 @@ def _warp_cases() -> list[Case]:
         Case("warp_not_zstd", "tensor", _stream(warp, b"\x02" * 400), warp),
         Case("warp_without_its_place", "tensor", _delete("clips.0.tensor_at"), "meta: clips[0].tensor_at"),
         Case("warp_clip_frames_one_more", "tensor", _clip_frames(0, lambda frames: frames + 1), "clip/00000"),
+        Case("warp_of_a_clip_of_other_frames", "tensor", _swapped(warp, "warp/00002"), warp),  # the fifth pass
     ]
     return c
 

@@ -427,3 +427,36 @@ def test_an_error_finer_than_any_capture_is_a_usage_error(shared_data, tmp_path,
     assert result.stderr == (f"mcz compress: {name} must be from 1e-06 to 1e+06 cm (exact values: --lossless), "
                              f"got {option[1]} (see mcz compress --help)\n")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["decompress", "convert"])
+def test_a_folder_where_a_file_goes_is_refused_before_any_file_is_written(tmp_path, shared_data, command):
+    """With -f, a folder at the path of a file to write was found only when that file was renamed
+    over it: the files before it stayed written, and the one line named the temporary file
+    (`out/.mcz-<hex>.tmp: Is a directory`). -f replaces files, not folders."""
+    out = tmp_path / "out"
+    if command == "decompress":
+        source, blocked = GOLDEN_LOSSY, out / "64_01.amc"  # after 09_01.amc, in the archive's order
+    else:
+        source, blocked = tmp_path / "in", out / "sub" / "09_02.bvh"
+        (source / "sub").mkdir(parents=True)
+        for name in ("09.asf", "09_01.amc", "09_02.amc"):
+            (source / "sub" / name).symlink_to(shared_data / "cmu/09" / name)
+    blocked.mkdir(parents=True)
+    before = sorted(tmp_path.rglob("*"))
+    result = run(command, source, "-o", out, "-f")
+    assert result.exit_code == 1
+    assert result.stderr == (f"mcz: error: {blocked}: is a folder: a file cannot be written in its place (-f replaces "
+                             "files, not folders)\n")
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_a_file_that_cannot_replace_what_is_there_is_named_not_its_temporary_file(tmp_path):
+    """What the rename over it says (a folder made there meanwhile) names the file, as a full disk does."""
+    from mocapzip.formats.text import write_file_atomically
+
+    (tmp_path / "x.amc").mkdir()
+    with pytest.raises(OSError) as raised:
+        write_file_atomically(tmp_path / "x.amc", b"data")
+    assert raised.value.filename == str(tmp_path / "x.amc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.amc"]  # and the temporary file is gone

@@ -141,7 +141,7 @@ def test_bad_addresses_are_refused(address, message):
 
 def test_local_takes_every_core_or_the_number_given():
     assert cluster.parse_address("local") == (os.cpu_count(), None)
-    assert cluster.parse_address("local:3") == (3, None)
+    assert cluster.parse_address("local:1") == (1, None)
     assert cluster.parse_address("tcp://host:8786") == (None, "tcp://host:8786")
 
 

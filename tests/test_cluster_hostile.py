@@ -2,7 +2,8 @@
 answers, one that answers HTTP, one whose first bytes declare an enormous message, other
 answers that are no Dask handshake, and a handshake followed by answers no scheduler gives, or
 by silence. Each run ends within mcz's connect timeout (1 s in the child) with one line, exit
-code 1 and no file. `--dask local:N` beyond what the machine can start is a usage error.
+code 1 and no file. `--dask local:N` beyond the machine's cores is a usage error, and a local
+cluster that cannot start is one line.
 
 Each peer is a thread of the test listening on 127.0.0.1. Nothing depends on how fast anything
 runs: a run that hangs meets the child's timeout (`tests/limited.py`) and fails its test.
@@ -149,35 +150,52 @@ def peer(answer: bytes | dict | None, close: bool):
         thread.join()
 
 
+def compress_at(address: str, shared_data, tmp_path, setup: str = SHORT_TIMEOUT):
+    """`mcz compress` of CMU subject 07 on the cluster at `address`, into an empty folder: (the run,
+    what the folder holds after it)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q", setup=setup)
+    return run, list(out.iterdir())
+
+
 @pytest.mark.parametrize("case", PEERS)
 def test_a_peer_that_is_not_a_scheduler_ends_the_run_in_one_line(shared_data, tmp_path, case):
     """Dask's connect waits for the handshake without a deadline and allocates the size its first
     8 bytes declare: a silent port hung the run, an HTTP answer asked for 3 EiB. mcz checks the
     handshake first, with a deadline: one line, exit code 1, nothing written."""
-    out = tmp_path / "out"
-    out.mkdir()
     with peer(*PEERS[case]) as address:
-        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q",
-                      setup=SHORT_TIMEOUT)
+        run, written = compress_at(address, shared_data, tmp_path)
     assert run.returncode == 1, run.stderr
     assert run.stderr.startswith(f"mcz: error: --dask {address}: not a Dask scheduler ("), run.stderr
     assert len(run.stderr.splitlines()) == 1 and "Traceback" not in run.stderr, run.stderr
     assert run.stderr.rstrip().endswith("; no partial file was left behind")
-    assert list(out.iterdir()) == []
+    assert written == []
 
 
 def test_a_scheduler_silent_after_the_start_ends_the_run_in_one_line(shared_data, tmp_path):
     """Before: a peer that answered the client's start, claiming a worker, and then nothing, hung
     the run for ever: Dask asks for the worker count without a deadline."""
-    out = tmp_path / "out"
-    out.mkdir()
     with peer(SILENT_AFTER_THE_START, False) as address:
-        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", address, "-q",
-                      setup=SHORT_TIMEOUT)
+        run, written = compress_at(address, shared_data, tmp_path)
     assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
     assert run.stderr.startswith(f"mcz: error: the Dask scheduler at {address} did not say how many workers it has ("
                                  "TimeoutError: "), run.stderr
-    assert list(out.iterdir()) == []
+    assert written == []
+
+
+def test_a_scheduler_that_never_runs_the_tasks_ends_the_run_in_one_line(shared_data, tmp_path, monkeypatch):
+    """Before: a peer that answered the client's start and the worker count, took the tasks and
+    never ran them, hung the run for ever. With no task finished within `mcz.stall-timeout` (Dask's
+    config, here from the environment), mcz asks the scheduler what its workers run: this one does
+    not answer."""
+    monkeypatch.setenv("DASK_MCZ__STALL_TIMEOUT", "1")
+    with peer({**SILENT_AFTER_THE_START, "ncores": {"tcp://127.0.0.1:2": 1}}, False) as address:
+        run, written = compress_at(address, shared_data, tmp_path)
+    assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert run.stderr.startswith(f"mcz: error: the Dask scheduler at {address} finished no task in 1 s and did not "
+                                 "say what its workers are doing (TimeoutError"), run.stderr
+    assert written == []
 
 
 def test_a_scheduler_handshake_as_dask_writes_it_passes():
@@ -202,13 +220,24 @@ def test_any_answer_is_a_handshake_or_a_value_error(answer):
         pass
 
 
-def test_local_workers_are_capped():
-    """`local:N` starts N worker processes: N beyond a few per core would not start (`local:100000`
-    hung with no output)."""
-    most = cluster.LOCAL_WORKERS_PER_CORE * os.cpu_count()
-    assert cluster.parse_address(f"local:{most}") == (most, None)
-    with pytest.raises(cluster.ClusterError, match=f"from 1 to {most} "):
-        cluster.parse_address(f"local:{most + 1}")
+def test_local_workers_are_capped_at_the_cores():
+    """`local:N` starts N worker processes: `local:100000` hung with no output, and `local:8` on 2
+    cores took this process's address space to 1.66 GB for no speed (a task is CPU-bound)."""
+    cores = os.cpu_count()
+    assert cluster.parse_address(f"local:{cores}") == (cores, None)
+    with pytest.raises(cluster.ClusterError, match=f"from 1 to {cores} "):
+        cluster.parse_address(f"local:{cores + 1}")
+
+
+def test_a_local_cluster_that_cannot_start_is_one_line(shared_data, tmp_path):
+    """Before: a worker that failed to start (here: a preload that is not there) was reported as
+    `--dask None: not a Dask scheduler`."""
+    run, written = compress_at("local:1", shared_data, tmp_path,
+                               setup="import dask; dask.config.set({'distributed.worker.preload': ['/nonexistent/x.py']})")
+    assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert run.stderr.startswith("mcz: error: --dask local:1: the local cluster could not start (RuntimeError: "), \
+        run.stderr
+    assert written == []
 
 
 @pytest.mark.parametrize("address", ["local:100000", "local:0", "tcp://a b", "local:" + "1" * 5000, "local:\uff11",
@@ -220,3 +249,18 @@ def test_a_malformed_dask_address_is_a_usage_error(shared_data, tmp_path, addres
     assert run.stderr.startswith("mcz compress: Invalid value for '--dask': "), run.stderr
     assert run.stderr.count("\n") == 1 and len(run.stderr) < 300
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scheme_whose_handshake_mcz_does_not_check_is_not_blamed_on_the_peer(shared_data, tmp_path):
+    """Only tcp:// peers have their handshake checked. A tls:// address (no TLS configured here)
+    was refused as "not a Dask scheduler (after its handshake, ...)": no handshake had been made,
+    and the peer was not at fault."""
+    out = tmp_path / "out"
+    out.mkdir()
+    with peer(*PEERS["silent"]) as address:
+        tls = address.replace("tcp://", "tls://")
+        run = run_mcz("compress", shared_data / "cmu" / "07", "-o", out / "db.mcz", "--dask", tls, "-q",
+                      setup=SHORT_TIMEOUT)
+    assert run.returncode == 1 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert run.stderr.startswith(f"mcz: error: the Dask scheduler at {tls} cannot be reached ("), run.stderr
+    assert list(out.iterdir()) == []

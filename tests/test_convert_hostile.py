@@ -539,3 +539,18 @@ def test_a_symbolic_link_in_the_output_folder_never_takes_a_file_outside_it(shar
     assert result.exit_code == 1 and list((tmp_path / "elsewhere").iterdir()) == []
     assert result.stderr == (f"mcz: error: {tmp_path / 'out' / 'sub' / first}: its folder leads outside the output "
                              "folder through a symbolic link; refusing to write it\n")
+
+
+@pytest.mark.parametrize("root", ["Hips", "%3Aodd", ":odd"])
+def test_a_hierarchy_mcz_cannot_model_is_refused_naming_the_files_joints(tmp_path, root):
+    """Convert models the hierarchy under the joints' ASF names (`root` for the root): a root
+    without position channels was refused as "root joint 'root' needs ...", a joint the file
+    does not have."""
+    joints = [BvhJoint(root, -1, np.zeros(3), ROTATIONS), BvhJoint("Spine", 0, np.array([0, 20.0, 0]), ROTATIONS,
+                                                                    np.array([0, 20.0, 0]))]
+    (tmp_path / "c.bvh").write_bytes(format_bvh(Bvh(joints, 1 / 30, np.zeros((2, 6)))).encode())
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "c.bvh"), "-o", str(tmp_path / "out"), "--units",
+                                       "cm"])
+    assert result.exit_code == 1 and not (tmp_path / "out").exists()
+    assert result.stderr == (f"mcz: error: {tmp_path / 'c.bvh'}: root joint '{root}' needs Xposition, Yposition and "
+                             "Zposition\n"), result.stderr

@@ -66,3 +66,55 @@ def test_a_chain_up_to_the_bone_limit_is_read(specials):
     result = run_limited(root / "chain_up_to_the_bone_limit", "inspect", "--json", ".")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["total"]["frames"] == 148
+
+
+@pytest.mark.parametrize("command", [["inspect"], ["compress", "--lossless", "-o", "db.mcz"], ["convert", "-o", "out"]])
+def test_a_link_to_a_device_named_on_the_command_line_is_refused_as_a_device(tmp_path, command):
+    """A link to /dev/zero given as a file was refused as "symbolic link loop or dangling symbolic
+    link": the link test came before the test of what it points to (found in a folder, it was
+    refused as a device already)."""
+    (tmp_path / "zero.bvh").symlink_to("/dev/zero")
+    os.mkfifo(tmp_path / "pipe.amc")
+    os.symlink("pipe.amc", tmp_path / "pipe_link.amc")
+    for name, kind in (("zero.bvh", "a character device (/dev/zero)"), ("pipe_link.amc", "a named pipe (FIFO)")):
+        result = run_limited(tmp_path, command[0], name, *command[1:])
+        lines = result.stderr.splitlines()
+        assert result.returncode == 1 and len(lines) == 1, result.stderr
+        assert lines[0].startswith(f"mcz: error: {name}: not a regular file: {kind}"), lines[0]  # and where it links
+    assert sorted(os.listdir(tmp_path)) == ["pipe.amc", "pipe_link.amc", "zero.bvh"]
+
+
+def sparse(path, head: bytes, size: int) -> None:
+    """`head`, then zeros up to `size` bytes that take no disk space."""
+    path.write_bytes(head)
+    os.truncate(path, size)
+
+
+@pytest.mark.parametrize("name, args, file, limit, what", [
+    ("bvh", ["inspect", "big.bvh"], "big.bvh", "213,925,888", "a BVH file"),
+    ("bvh", ["compress", "big.bvh", "--lossless", "-o", "db.mcz"], "big.bvh", "213,925,888", "a BVH file"),
+    ("bvh", ["convert", "big.bvh", "-o", "out"], "big.bvh", "213,925,888", "a BVH file"),
+    ("asf", ["inspect", "09_01.amc"], "09.asf", "16,777,216", "an ASF file"),
+    ("asf", ["convert", "09_01.amc", "-o", "out"], "09.asf", "16,777,216", "an ASF file"),
+    ("asf_option", ["inspect", "09_01.amc", "--asf", "big.asf"], "big.asf", "16,777,216", "an ASF file"),
+    ("class_table", ["compress", "09_01.amc", "-c", "big.csv", "-o", "db.mcz"], "big.csv", "268,435,456",
+     "a class table"),
+])
+def test_a_file_larger_than_its_format_allows_is_refused_unread(shared_data, tmp_path, name, args, file, limit, what):
+    """A sparse file takes no disk space but claims gigabytes: BVH, ASF and class-table files were
+    read whole ("out of memory", naming no file, under the hostile suites' limit), as AMC files
+    are not. Each is refused by its size before a byte is read."""
+    amc = (shared_data / hostile_inputs.SUBJECT / hostile_inputs.AMC_NAME).read_bytes()
+    asf = (shared_data / hostile_inputs.SUBJECT / hostile_inputs.ASF_NAME).read_bytes()
+    (tmp_path / "09_01.amc").write_bytes(amc[:20_000])
+    sparse(tmp_path / "09.asf", asf, 3 << 30 if name == "asf" else len(asf))
+    if name == "asf_option":
+        sparse(tmp_path / "big.asf", asf, 3 << 30)
+    sparse(tmp_path / "big.csv", b"09_01.amc,a\n", 3 << 30)
+    sparse(tmp_path / "big.bvh", (shared_data / "bvh-bandai" / "dataset-1_bow_active_001.bvh").read_bytes(), 3 << 30)
+    before = sorted(os.listdir(tmp_path))
+    result = run_mcz(*args, cwd=tmp_path, memory=1 << 30)
+    assert result.returncode == 1 and result.stderr == (
+        f"mcz: error: {file}: file of 3,221,225,472 bytes is larger than the {limit} bytes {what} may have\n"), (
+        result.stderr)
+    assert sorted(os.listdir(tmp_path)) == before

@@ -21,12 +21,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import hostile_archives
 import reference_decoder
 from mocapzip.archive import Archive
 from mocapzip.cli.main import main
 from mocapzip.formats.amc import read_amc
 from mocapzip.formats.bvh import parse_bvh, read_bvh, write_bvh
-from mocapzip.formats.mcz import ArchiveReader
+from mocapzip.formats.mcz import ArchiveError, ArchiveReader
 from test_bvh_pipeline import rescaled
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -231,3 +232,18 @@ def test_reference_decoder_decodes_a_lossless_bvh_archive_without_units(shared_d
     with Archive(archive) as opened:
         assert opened.meta["skeletons"][0]["units"] is None
     check_against_package(archive, tmp_path)
+
+
+def test_both_decoders_refuse_a_degenerate_pose(tmp_path):
+    """A tensor model of zeros decodes its class's bones to no direction (§10.8, Degenerate
+    poses): before, the two decoders took that rounding noise for directions and wrote angles up to
+    6,109 degrees apart. Both refuse the clip now."""
+
+    case = next(c for c in hostile_archives.cases(tmp_path) if c.name == "tensor_model_of_zeros")
+    hostile_archives.build(case, tmp_path / "zeros.mcz")
+    with Archive(tmp_path / "zeros.mcz") as archive:
+        with pytest.raises(ArchiveError, match=r"zeros.mcz: clip/00000 \(09_01.amc\): damaged \(class 1's model and basis "
+                                               r"decode to a degenerate pose: bone "):
+            archive.decode(0)
+    with pytest.raises(ValueError, match="degenerate pose"):
+        reference_decoder.decode_archive(tmp_path / "zeros.mcz")

@@ -37,7 +37,7 @@ from mocapzip.codec.patches import FramePatches, channel_steps
 from mocapzip.formats.amc import AmcStyle, Motion
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader, parse_json
-from mocapzip.formats.text import (MAX_ABS_VALUE, check_folders, check_inside, in_value_range,
+from mocapzip.formats.text import (MAX_ABS_VALUE, check_folders, check_inside, check_not_folders, in_value_range,
                                    write_file_atomically)
 from mocapzip.inputs.registry import InputFormat, stored_format
 from mocapzip.legacy import Format
@@ -48,7 +48,7 @@ from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.motion.timewarp import path_of_moves
 from mocapzip.parallel import imap, one_blas_thread, thread_imap
 from mocapzip.progress import progress
-from mocapzip.representations.positions import flips_from_ranges
+from mocapzip.representations.positions import DegeneratePose, flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
 
 
@@ -206,6 +206,11 @@ class Archive:
                     raise ValueError(f"decoded poses beyond +-{MAX_ABS_POSE:g}, or not numbers")
                 twist = flips_from_ranges(row.get("twist_flips", {}), model, row["frames"])
                 tail = self._decode_tail(row["skeleton"], layout)
+                try:
+                    tail.decoder.check_directions(poses)
+                except DegeneratePose as exc:
+                    raise ArchiveError(f"clip/{index:05d} ({row['path']}): damaged (class {row['class']}'s model and basis "
+                                       f"decode to a degenerate pose: {exc})", self.path) from None
                 values = tail.decode(poses, root, twist)
                 if "planted_stances" in row:
                     name = f"plant/{index:05d}"
@@ -437,6 +442,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
                    if (index in chosen if kind == "motion" else PurePosixPath(path).parent in folders)}
         check_inside(out, targets)
         check_folders(path.parent for path in targets)
+        check_not_folders(targets)
         existing = [p for p in targets if os.path.lexists(p)]
         if existing and not force:
             raise FileExistsError(None, "already exists", os.fspath(existing[0]))

@@ -14,7 +14,9 @@ from pathlib import Path, PurePosixPath
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import read_regular_file
 from mocapzip.inputs.discover import ClipSource
-from mocapzip.limits import MAX_PATH_BYTES
+from mocapzip.limits import MAX_DECODED_STREAM_BYTES, MAX_PATH_BYTES
+
+MAX_TABLE_BYTES = MAX_DECODED_STREAM_BYTES  # refused unread: meta, which names every clip, may not be larger
 
 
 def class_namer(mode: str) -> Callable[[ClipSource], str]:
@@ -85,7 +87,7 @@ def read_class_table(path) -> dict[str, str]:
     path = Path(path)
     if not path.exists():
         raise MocapFormatError("class table not found", path)
-    lines = read_regular_file(path).decode("utf-8", errors="replace").splitlines()
+    lines = read_regular_file(path, MAX_TABLE_BYTES, "a class table").decode("utf-8", errors="replace").splitlines()
     if not lines:
         raise MocapFormatError("class table is empty", path)
     reader = csv.reader(lines, dialect="excel-tab" if "\t" in lines[0] else "excel")

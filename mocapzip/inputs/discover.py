@@ -19,8 +19,9 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+from mocapzip.formats.asf import read_asf_bytes
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import check_regular_file, read_regular_file
+from mocapzip.formats.text import check_regular_file
 from mocapzip.inputs.registry import InputFormat, clip_format, clip_suffixes, input_formats
 
 
@@ -69,10 +70,10 @@ def find_clips(inputs: list[str | os.PathLike], asf: str | os.PathLike | None = 
                     continue  # a skeleton named on the command line pairs by folder below
                 raise MocapFormatError(f"not a clip (expected the {' or '.join(clip_suffixes())} extension)", path)
             clips.append(ClipSource(path, None, path.name))
+        elif path.exists():  # before the link test: a link to a FIFO or a device is refused as one
+            check_regular_file(path.stat(), path)  # a FIFO or a device: refused, never opened
         elif path.is_symlink():
             raise MocapFormatError("symbolic link loop or dangling symbolic link", path)
-        elif path.exists():
-            check_regular_file(path.stat(), path)  # a FIFO or a device: refused, never opened
         else:
             raise MocapFormatError("no such file or directory", path)
     seen: dict[str, Path] = {}
@@ -151,7 +152,7 @@ def _skeletons_in_folder(folder: Path, suffix: str) -> list[list[Path]]:
     groups: dict[bytes | Path, list[Path]] = {}
     for path in candidates:
         try:
-            key = read_regular_file(path).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+            key = read_asf_bytes(path).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
         except (OSError, MocapFormatError):
             key = path
         groups.setdefault(key, []).append(path)

@@ -27,10 +27,10 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from mocapzip.formats.amc import amc_blocks, read_amc
-from mocapzip.formats.asf import Skeleton, parse_asf
+from mocapzip.formats.asf import Skeleton, parse_asf, read_asf_bytes
 from mocapzip.formats.bvh import BvhStyle, motion_lines_problem, parse_hierarchy, read_bvh, read_hierarchy, split_header
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import detect_encoding, read_regular_file
+from mocapzip.formats.text import detect_encoding
 from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout, unmodelled
 from mocapzip.motion.skeleton import SkeletonModel
 
@@ -205,7 +205,7 @@ def _check_amc_row(row: dict, index: int, fail) -> list[str]:
 
 
 AMC = register(InputFormat(
-    DEFAULT_FORMAT, (".amc",), read_regular_file, _read_asf, _read_amc, _write_amc, skeleton_suffix=".asf",
+    DEFAULT_FORMAT, (".amc",), read_asf_bytes, _read_asf, _read_amc, _write_amc, skeleton_suffix=".asf",
     skeleton_kind="ASF", check_row=_check_amc_row))
 
 

@@ -47,6 +47,10 @@ class PoseDecoder(ABC):
         encoder, which knows the original: `MarkerDecoder.twist_reference`) or follow `flips` (the
         decoder: `flip_flags`); with neither, the default solution."""
 
+    def check_directions(self, weighted_poses: np.ndarray) -> None:
+        """ValueError if a direction the decode normalises is no direction (`positions.MarkerDecoder`);
+        a representation that normalises none has nothing to check."""
+
     def flip_flags(self, flips: dict[int, np.ndarray], n_frames: int) -> np.ndarray:
         """`positions.TwistChoice.flips` as `channels` takes them: (len(twisted), frames) bool."""
         flags = np.zeros((len(self.twisted), n_frames), np.bool_)

@@ -250,6 +250,19 @@ def decode_markers(model: SkeletonModel, poses: np.ndarray, with_root: bool, axe
     return Pose(rotations, positions)
 
 
+MIN_DIRECTION = 1e-6  # cm for a bone from its parent, else a unit vector's length: shorter is no direction
+
+
+class DegeneratePose(ValueError):
+    """Decoded poses with a bone or axis of no direction (`MarkerDecoder.check_directions`)."""
+
+
+def _across(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """y less its part along x, as `frame(x, y)` makes it (docs/format.md §10.1) before it normalises it."""
+    unit = x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-300)
+    return y - np.sum(y * unit, axis=-1, keepdims=True) * unit
+
+
 def marker_weights(width: int, joint_positions: slice, axis_weight_cm: float) -> np.ndarray:
     """Column weights of a marker pose: joint positions (cm) count 1, the bone axis vectors after
     them (unit vectors) `axis_weight_cm`, the distance at which an axis error becomes a position
@@ -327,6 +340,39 @@ class MarkerDecoder(PoseDecoder):
             if model.names[j] in columns:
                 rotations = [k for k, (kind, _) in enumerate(model.channels[j]) if kind == "r"]
                 self.twist_columns[r] = columns[model.names[j]].start + np.array(rotations[:2])
+
+    def check_directions(self, weighted_poses: np.ndarray) -> None:
+        """ValueError naming the first bone and frame whose direction is shorter than MIN_DIRECTION
+        (docs/format.md §10.8): a bone on its parent, an axis of zero length, a y axis along its x
+        axis. Their `frame` is rounding noise, and two decoders that sum in other orders wrote
+        angles thousands of degrees apart (a tensor model of zeros). Compress never stores one: a
+        bone of 1 cm or more (shorter ones are short, their x axis stored) is coded within its error."""
+        poses = np.asarray(weighted_poses, dtype=np.float64) / self.weights
+        if self.to_markers is not None:
+            poses = self.to_markers(poses)
+        model = self.tables.model
+        positions = np.zeros((len(poses), model.n_joints, 3))
+        placed = self.position_column >= 0
+        positions[:, placed] = poses[:, self.position_column[placed, None] + np.arange(3)]
+        x = positions[:, 1:] - positions[:, model.parents[1:]]
+        short = self.x_column[1:] >= 0
+        x[:, short] = poses[:, self.x_column[1:][short, None] + np.arange(3)]
+        names = list(model.names[1:])
+        checks = [("x", x, names)]
+        stored = self.y_column[1:] >= 0
+        if stored.any():
+            checks.append(("y", _across(x[:, stored], poses[:, self.y_column[1:][stored, None] + np.arange(3)]),
+                           [n for n, s in zip(names, stored) if s]))
+        if self.root_axes_column >= 0:
+            axes = poses[:, self.root_axes_column:self.root_axes_column + 6].reshape(len(poses), 2, 3)
+            checks.append(("x", axes[:, :1], [model.names[0]]))
+            checks.append(("y", _across(axes[:, :1], axes[:, 1:]), [model.names[0]]))
+        for axis, vectors, bones in checks:
+            lengths = np.linalg.norm(vectors, axis=-1)
+            if not np.all(lengths >= MIN_DIRECTION):
+                frame, bone = np.argwhere(~(lengths >= MIN_DIRECTION))[0]
+                raise DegeneratePose(f"bone {bones[bone]!r} in frame {frame}: {axis} axis of length "
+                                     f"{lengths[frame, bone]:.3g}, below {MIN_DIRECTION:g}")
 
     def twist_reference(self, original_values: np.ndarray) -> np.ndarray:
         """(F, 2-dof solved bones, 3, 3): their true local rotations (`true_twists`)."""

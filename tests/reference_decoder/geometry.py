@@ -487,6 +487,8 @@ def decode_markers(sk, poses, o, flips):
         x_axis[j] = poses[:, col:col + 3]
         col += 3
 
+    root_axes = None if sk.proxy is not None else (poses[:, col:col + 3], poses[:, col + 3:col + 6])
+    check_directions(sk, p, x_axis, y_axis, root_axes)
     R = np.zeros((count, frames, 3, 3))
     for j in stored:  # step 2
         x = x_axis[j] if sk.short[j] else p[j] - p[sk.parent[j]]
@@ -501,6 +503,29 @@ def decode_markers(sk, poses, o, flips):
             m = solve(sk, j, p[j] - p[parent], R[parent], flips.get(sk.names[j]))
             R[j] = transpose(sk.C[j]) @ m @ sk.C[j] @ R[parent]
     return R, p
+
+
+MIN_DIRECTION = 1e-6
+
+
+def check_directions(sk, p, x_axis, y_axis, root_axes):
+    """§10.8's rule before decoding: every x (a bone from its parent, or a short bone's x axis, or
+    the root's), and every y less its part along x (as frame() makes it), at least MIN_DIRECTION long."""
+    def across(x, y):
+        xh = x / np.maximum(norm(x), 1e-300)[:, None]
+        return y - np.sum(y * xh, axis=-1)[:, None] * xh
+
+    vectors = []
+    for j in range(1, len(sk.names)):
+        x = x_axis[j] if sk.short[j] else p[j] - p[sk.parent[j]]
+        vectors.append((sk.names[j], x))
+        if j in y_axis:
+            vectors.append((sk.names[j], across(x, y_axis[j])))
+    if root_axes is not None:
+        vectors += [(sk.names[0], root_axes[0]), (sk.names[0], across(*root_axes))]
+    for name, v in vectors:
+        if not np.all(norm(v) >= MIN_DIRECTION):
+            raise ValueError(f"bone {name}: a direction shorter than {MIN_DIRECTION} (degenerate pose)")
 
 
 def solve(sk, j, bone, r_parent, flip_ranges):
