@@ -1,6 +1,6 @@
 """Clip edges: how much worse a clip's first and last frames come back than the rest.
 
-    python benchmarks/clip_edges.py [--data bandai|cmu|DIR] [-e 1] [-t dct-edges -t dct] [-j 2]
+    python benchmarks/clip_edges.py [--data bandai|cmu|DIR] [-e 1] [-t dct-edges -t dct-edges:4 -t dct] [-j 2]
 
 Compresses the set once per transform (`-t`, at `-e`), decodes every clip through the API and
 measures each frame's mean joint error against the source. Per transform: the archive's bytes,
@@ -62,7 +62,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default="bandai", help="bandai, cmu or a folder of clips")
     parser.add_argument("-e", "--error", type=float, default=1.0)
-    parser.add_argument("-t", "--transform", action="append", help="transforms to compare (default dct-edges, dct)")
+    parser.add_argument("-t", "--transform", action="append",
+                        help="transforms to compare (default dct-edges, dct); dct-edges:N codes N columns by their ends")
     parser.add_argument("-j", "--jobs", type=int, default=2)
     args = parser.parse_args(argv)
     folder = SETS.get(args.data, Path(args.data))
@@ -71,8 +72,10 @@ def main(argv=None) -> None:
     rows = []
     with tempfile.TemporaryDirectory() as scratch:
         for transform in transforms:
-            archive = Path(scratch) / f"{transform}.mcz"
-            summary = mocapzip.compress(folder, archive, error=args.error, transform={"id": transform}, jobs=args.jobs)
+            archive = Path(scratch) / f"{transform.replace(':', '-')}.mcz"
+            name, _, columns = transform.partition(":")
+            config = {"id": name, **({"edge_columns": int(columns)} if columns else {})}
+            summary = mocapzip.compress(folder, archive, error=args.error, transform=config, jobs=args.jobs)
             rows.append((transform, summary["output_bytes"], edge_errors(archive, folder)))
     base = rows[-1][1]
     print(f"`python benchmarks/clip_edges.py {' '.join(sys.argv[1:] if argv is None else argv)}`: {folder.name}, "
