@@ -308,7 +308,7 @@ def compress(inputs, output, error_cm, max_error, contact_error, plant_feet, rep
         from mocapzip import archive
         from mocapzip import progress
 
-    progress.QUIET = quiet
+    progress.set_quiet(quiet)
     transform_config = {"id": transform}
     if transform == "dwt":
         transform_config.update(wavelet=wavelet, level=level)
@@ -397,7 +397,7 @@ def decompress(archive_path, output, patterns, force, jobs, quiet):
         from mocapzip import archive
         from mocapzip import progress
 
-    progress.QUIET = quiet
+    progress.set_quiet(quiet)
     summary = archive.decompress(archive_path, output, patterns, force=force, jobs=jobs)
     if not quiet:
         click.echo(f"{_count(summary['clips'], 'clip')}, {_count(summary['frames'], 'frame')} -> "
@@ -502,7 +502,7 @@ def test_archive(archive_path, jobs, against, shell_cm, quiet):
         from mocapzip import archive
         from mocapzip import progress
 
-    progress.QUIET = quiet
+    progress.set_quiet(quiet)
     with archive.Archive(archive_path) as opened:
         opened.verify(jobs)
         count = len(opened.clips)

@@ -46,7 +46,7 @@ from mocapzip.limits import MAX_ABS_POSE, MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.motion.timewarp import path_of_moves
-from mocapzip.parallel import imap, one_blas_thread, thread_imap
+from mocapzip.parallel import imap, one_blas_thread, thread_imap, worker_state
 from mocapzip.progress import progress
 from mocapzip.representations.positions import flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
@@ -449,7 +449,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
 
 FILES_AHEAD = 2  # files made ahead of the one being written, per job: enough to keep every thread or worker busy
 
-_SHARED: dict = {}  # the archive the forked workers decode from (`Archive._made_in_processes`)
+_SHARED = worker_state(__name__)  # the archive the forked workers decode from (`Archive._made_in_processes`)
 
 
 def _kept(blocks: Iterator[bytes], keep: bool) -> list[bytes] | None:
