@@ -175,7 +175,7 @@ def compress_subset(data: Path, mode: str, work: Path, jobs: int, error_cm: floa
     from mocapzip import archive
     from mocapzip import progress
 
-    progress.QUIET = True
+    progress.set_quiet(True)
     inputs = [data / p for p in COMPRESSION_SET]
     out = work / f"{mode.replace(':', '_')}.mcz"
     settings = archive.Settings(error_cm=error_cm, classes=mode)

@@ -112,7 +112,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
             import matplotlib  # noqa: F401
         except ImportError:
             raise click.UsageError("--plot needs matplotlib: pip install 'mocapzip[plot]'") from None
-    progress.QUIET = quiet
+    progress.set_quiet(quiet)
     options = bench_module.BenchOptions(
         inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
         transforms=list(transforms) or ["dct-edges"], classes=list(classes) or ["pooled"], splits=_splits(splits),

@@ -147,7 +147,8 @@ def classify(labels, train_inputs, test_inputs, representation, threshold, varia
         from mocapzip import progress
         from mocapzip.classes.ppca import format_table
 
-    progress.QUIET = as_json or progress.QUIET
+    if as_json:  # the JSON alone on the terminal
+        progress.set_quiet(True)
     chosen = None if only is None else {c.strip() for c in only.split(",") if c.strip()}
     report = run_classification(labels, train_inputs, test_inputs, representation, _threshold(threshold),
                                 variance, chosen, asf, segment)

@@ -117,6 +117,24 @@ def _count(n: int, noun: str) -> str:
     return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
+def _skeletons_line(report: dict) -> str | None:
+    """`mcz info`'s skeletons, as each input format describes its own (`InputFormat.described`);
+    none when all are ASF skeletons, as before format 8. `info` lists each format's but ASF's."""
+    from mocapzip.inputs.registry import input_formats
+
+    listed = [(f, report.get(f"{f.name}_skeletons", [])) for f in input_formats()]
+    others = sum(len(skeletons) for f, skeletons in listed if not f.asf_skeletons)
+    if not others:
+        return None
+    parts = []
+    for f, skeletons in listed:
+        if f.asf_skeletons:  # the rest
+            skeletons = [{}] * (report["skeletons"] - others)
+        if skeletons:
+            parts.append(f.described(skeletons))
+    return "skeletons: " + ", ".join(parts)
+
+
 def _errors(report: dict) -> str:
     """The achieved errors: every clip's MEAN is within -e, so the largest mean is the bound that held."""
     vertex = report.get("largest_max_vertex_error_cm")
@@ -302,7 +320,7 @@ def compress(inputs, output, error_cm, max_error, max_vertex_error, shell_cm, co
         from mocapzip import archive
         from mocapzip import progress
 
-    progress.QUIET = quiet
+    progress.set_quiet(quiet)
     transform_config = {"id": transform}
     if transform == "dwt":
         transform_config.update(wavelet=wavelet, level=level)
@@ -392,7 +410,7 @@ def decompress(archive_path, output, patterns, force, jobs, quiet):
         from mocapzip import archive
         from mocapzip import progress
 
-    progress.QUIET = quiet
+    progress.set_quiet(quiet)
     summary = archive.decompress(archive_path, output, patterns, force=force, jobs=jobs)
     if not quiet:
         click.echo(f"{_count(summary['clips'], 'clip')}, {_count(summary['frames'], 'frame')} -> "
@@ -437,13 +455,9 @@ def info(archive_path, show_clips, as_json):
     click.echo(f"{_count(len(report['clips']), 'clip')}, {_count(report['frames'], 'frame')}, {report['bytes']:,} bytes "
                f"({report['bytes_per_frame']:.2f} bytes/frame), {_errors(report)}")
     click.echo("streams: " + ", ".join(f"{k} {v:,} B" for k, v in sorted(report["stream_bytes"].items())))
-    bvh = Counter((b["units"], b["units_inferred"]) for b in report["bvh_skeletons"])
-    if bvh:
-        asf = report["skeletons"] - len(report["bvh_skeletons"])
-        units = ", ".join(f"{n:,} BVH {'hierarchy' if n == 1 else 'hierarchies'} (units: {unit}, "
-                          f"{'inferred from the skeleton' if inferred else 'given by --units' if unit else 'not known'})"
-                          for (unit, inferred), n in sorted(bvh.items(), key=str))
-        click.echo(f"skeletons: {_count(asf, 'ASF skeleton') + ', ' if asf else ''}{units}")
+    line = _skeletons_line(report)
+    if line:
+        click.echo(line)
     if report["skipped"]:
         click.echo(f"not in the archive, skipped by compress --skip-bad: {len(report['skipped'])}")
         for skip in report["skipped"]:
@@ -505,7 +519,7 @@ def test_archive(archive_path, jobs, against, shell_cm, quiet):
         from mocapzip import archive
         from mocapzip import progress
 
-    progress.QUIET = quiet
+    progress.set_quiet(quiet)
     with archive.Archive(archive_path) as opened:
         opened.verify(jobs)
         count = len(opened.clips)

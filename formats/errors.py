@@ -1,4 +1,5 @@
-"""The one exception type every reader raises, so the CLI can print one line and exit 1."""
+"""The one exception type every reader raises, so the CLI can print one line and exit 1, and
+its kind for a damaged archive (`ArchiveError`)."""
 
 from __future__ import annotations
 
@@ -27,3 +28,7 @@ class MocapFormatError(Exception):
     def __reduce__(self):
         # Keep path and line when the error crosses a process boundary (multiprocessing).
         return (type(self), (self.message, self.path, self.line))
+
+
+class ArchiveError(MocapFormatError):
+    """A damaged or invalid archive; the message starts with the section: header, index or stream."""

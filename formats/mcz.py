@@ -18,22 +18,22 @@ import functools
 import io
 import itertools
 import json
-import math
 import os
 import secrets
 import stat
 import tempfile
 import zlib
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 
 import h5py
 import numpy as np
 from h5py import h5d, h5p, h5t, h5z
 
-from mocapzip.legacy import Format, format_of
+from mocapzip.legacy import Format, container, format_of
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES
-from mocapzip.formats.errors import MocapFormatError
+from mocapzip.formats.errors import ArchiveError
+from mocapzip.formats.mcz_checks import MAGIC, dataset_problem, index_columns, parse_json, root_datasets, section
 from mocapzip.formats.text import open_regular_file
 
 __all__ = ["FORMAT_VERSION", "MAGIC", "ArchiveError", "ArchiveReader", "ArchiveWriter", "parse_json", "write_archive"]
@@ -44,7 +44,6 @@ FORMAT_VERSION = 13
 # cannot read (`h5ls -r`: "/index Dataset *ERROR*"), and the bytes of an archive depended on the
 # HDF5 that wrote it. Measured with HDF5 2.0: attribute-index archives are byte-identical either way.
 LIBVER = ("v110", "v110")
-MAGIC = "MCZ mocapzip archive"
 _WRITE_BATCH = 1 << 20  # one h5py write per small stream costs ~50 us; batch them instead
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _ATTRIBUTES = ("magic", "format_version", "index", "index_crc32")
@@ -55,38 +54,6 @@ INDEX_ATTRIBUTE_BYTES = 360
 _INDEX_KEYS = ("tool", "names", "lengths", "crc32")
 # The index obeys the limit of every decoded stream (a zstd-coded index, `legacy.container`: stored and unpacked).
 MAX_INDEX_BYTES = MAX_DECODED_STREAM_BYTES
-
-
-class ArchiveError(MocapFormatError):
-    """A damaged or invalid archive; the message starts with the section: header, index or stream."""
-
-
-def _refuse_constant(name: str):
-    raise ValueError(f"{name} is not a JSON number")
-
-
-def parse_json(data: bytes):
-    """JSON as the spec defines it: UTF-8 text (no byte-order mark, which Python's json would skip,
-    nor UTF-16, which it would detect), no NaN or Infinity, nor a number that overflows to one
-    (1e400), and no key twice in an object (Python keeps the last)."""
-    return json.loads(bytes(data).decode("utf-8"), parse_constant=_refuse_constant, parse_float=_finite,
-                      object_pairs_hook=_unique_keys)
-
-
-def _finite(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"{text[:20]} is not a finite number")
-    return value
-
-
-def _unique_keys(pairs: list) -> dict:
-    doc = {}
-    for key, value in pairs:
-        if key in doc:
-            raise ValueError(f"a key appears twice in an object: {key[:80]!r}")
-        doc[key] = value
-    return doc
 
 
 def write_archive(
@@ -349,30 +316,6 @@ def _write_payload(dataset: h5py.Dataset, values: list[memoryview | SpooledStrea
         flush()
 
 
-def _dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
-    """What, if anything, makes `ds` other than a 1-D uint8 array stored contiguously in this file."""
-    plist, dtype = ds.id.get_create_plist(), ds.id.get_type()
-    layout = plist.get_layout()
-    if layout == h5d.VIRTUAL:
-        return "is a virtual dataset"
-    if plist.get_external_count():
-        return "is stored in external files"
-    if layout != h5d.CONTIGUOUS:  # filters (compression, shuffle, checksums) come with chunks
-        return f"is {'chunked' if layout == h5d.CHUNKED else 'compact'}, not contiguous"
-    if dtype.get_class() != h5t.INTEGER or dtype.get_size() != 1 or dtype.get_sign() != h5t.SGN_NONE:
-        return f"has type {ds.dtype}, not uint8"
-    if ds.ndim != 1:
-        return f"has shape {ds.shape}, not 1-D"
-    if plist.fill_value_defined() != h5d.FILL_VALUE_DEFAULT:
-        return "has a fill value"
-    if ds.attrs:
-        return "has attributes"
-    offset = ds.id.get_offset()  # None: no storage allocated
-    if ds.shape[0] and (offset is None or offset + ds.shape[0] > file_size):  # also bounds any allocation
-        return f"has {ds.shape[0]} bytes, not stored within the file's {file_size}"
-    return None
-
-
 def _index_dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
     """What, if anything, makes the index dataset other than one element in one chunk, deflated
     and stored within this file (the reader inflates it itself: `ArchiveReader._inflated`)."""
@@ -387,17 +330,6 @@ def _index_dataset_problem(ds: h5py.Dataset, file_size: int) -> str | None:
     if chunk.filter_mask or chunk.byte_offset is None or chunk.byte_offset + chunk.size > file_size:
         return "is not stored deflated within the file"
     return None
-
-
-@contextmanager
-def _section(path: str, section: str) -> Iterator[None]:
-    """Turn whatever h5py/HDF5 raises on a damaged file (OSError, KeyError, ValueError, ...) into ArchiveError."""
-    try:
-        yield
-    except ArchiveError:
-        raise
-    except Exception as exc:
-        raise ArchiveError(f"{section}: damaged or unreadable ({type(exc).__name__}: {exc})", path) from exc
 
 
 def _has_hdf5_signature(file, size: int) -> bool:
@@ -430,7 +362,7 @@ class ArchiveReader:
             file_size = os.fstat(file.fileno()).st_size
             if not _has_hdf5_signature(file, file_size):
                 raise self._error("header: not an mcz archive (not an HDF5 file)")
-        with _section(self.path, "header"):
+        with section(self.path, "header"):
             self._file = h5py.File(self.path, "r")
         try:
             self._open(file_size)
@@ -443,7 +375,7 @@ class ArchiveReader:
 
     def _open(self, file_size: int) -> None:
         f = self._file
-        with _section(self.path, "header"):
+        with section(self.path, "header"):
             attrs = {key: f.attrs[key] for key in ("magic", "format_version")}
             if attrs["magic"] != MAGIC.encode():
                 raise self._error(f"header: not a mocapzip archive (magic {attrs['magic']!r}, expected {MAGIC!r})")
@@ -457,20 +389,20 @@ class ArchiveReader:
                 )
         self.format: Format = format_of(self.format_version)  # what it does differently from the newest
         if self.format.container == 1:
-            from mocapzip.legacy import container  # formats 1 to 6's layout; it builds on this module
-
-            payload_ds, self._names, lengths, crcs = container.read_index(self, file_size)
+            payload_ds, self._names, lengths, crcs, self.tool_version = container.read_index(
+                f, self.path, self.format_version, file_size, MAX_INDEX_BYTES)
         else:
-            with _section(self.path, "header"):
+            with section(self.path, "header"):
                 in_attribute = "index" in f.attrs  # names only: nothing is read yet
             if in_attribute:
-                payload_ds = self._datasets(file_size, _ATTRIBUTES, {"payload": _dataset_problem})["payload"]
-                with _section(self.path, "index"):
+                payload_ds = root_datasets(f, self.path, file_size, _ATTRIBUTES,
+                                           {"payload": dataset_problem})["payload"]
+                with section(self.path, "index"):
                     stored = f.attrs.get_id("index")
                 self._names, lengths, crcs = self._index(stored, (), lambda size: bytes(f.attrs["index"]))
             else:
-                datasets = self._datasets(file_size, tuple(a for a in _ATTRIBUTES if a != "index"),
-                                          {"index": _index_dataset_problem, "payload": _dataset_problem})
+                datasets = root_datasets(f, self.path, file_size, tuple(a for a in _ATTRIBUTES if a != "index"),
+                                          {"index": _index_dataset_problem, "payload": dataset_problem})
                 payload_ds, index_ds = datasets["payload"], datasets["index"]
                 self._names, lengths, crcs = self._index(index_ds.id, (1,), lambda size: self._inflated(index_ds, size))
         starts = [0, *itertools.accumulate(lengths)]
@@ -479,40 +411,13 @@ class ArchiveReader:
             raise self._error(f"index: streams need {starts[-1]} bytes, payload has {payload_ds.shape[0]}")
         self._payload = payload_ds
 
-    def _datasets(self, file_size: int, attributes: tuple[str, ...], items: dict[str, Callable]) -> dict[str, h5py.Dataset]:
-        """The root's datasets `items` (name -> the check that finds what, if anything, is wrong with
-        it), once the root is found to hold nothing the format does not define.
-
-        Checked before any data is read: HDF5 can take a dataset's bytes from other files (external
-        storage, virtual datasets, external links), which may be a FIFO or /dev/zero, and decode
-        them with filters (plugins); `read` relies on `payload` being one contiguous run of this file.
-        """
-        f = self._file
-        with _section(self.path, "header"):
-            for kind, present, expected in (("attribute", f.attrs, attributes), ("item", f, items)):
-                odd = sorted(set(present) ^ set(expected))  # names only: listing no link resolves it
-                if odd:
-                    state = "missing" if odd[0] in expected else "not in the format"
-                    raise self._error(f"header: root {kind} {odd[0]!r} is {state}")
-            datasets = {}
-            for name, check in items.items():
-                link = f.get(name, getlink=True)
-                if not isinstance(link, h5py.HardLink):  # resolving a soft or external link could open any file
-                    raise self._error(f"header: {name} is not a dataset but a link ({type(link).__name__})")
-                ds = f[name]
-                problem = "is not a dataset" if not isinstance(ds, h5py.Dataset) else check(ds, file_size)
-                if problem:
-                    raise self._error(f"header: {name} {problem}")
-                datasets[name] = ds
-        return datasets
-
     def _index(self, stored, shape: tuple, read) -> tuple[list[str], list[int], list[int]]:
         """Format 7: the index (UTF-8 JSON) from `read(size)`, once its HDF5 object `stored` (the
         attribute, or the dataset `_index_dataset_problem` passed) is found to hold one null-padded,
         fixed-length UTF-8 string of `size` bytes within the limit; checked against index_crc32.
         Sets `tool_version`."""
         f = self._file
-        with _section(self.path, "index"):
+        with section(self.path, "index"):
             kind = stored.get_type()
             if (kind.get_class() != h5t.STRING or kind.is_variable_str() or stored.shape != shape
                     or kind.get_cset() != h5t.CSET_UTF8 or kind.get_strpad() != h5t.STR_NULLPAD):
@@ -540,7 +445,7 @@ class ArchiveReader:
         if not isinstance(tool, str) or not tool or "\0" in tool:
             raise self._error("index: tool must be a non-empty string without NUL")
         self.tool_version = tool
-        return self._index_columns(doc, _INDEX_KEYS[1:])
+        return index_columns(doc, _INDEX_KEYS[1:], self.path)
 
     def _inflated(self, index_ds: h5py.Dataset, size: int) -> bytes:
         """The index dataset's one chunk (within the file: `_index_dataset_problem`), inflated here,
@@ -554,22 +459,6 @@ class ArchiveReader:
             raise self._error(f"index: its deflated chunk does not hold exactly its {size} bytes")
         return data
 
-    def _index_columns(self, doc: dict, keys: tuple[str, ...]) -> list[list]:
-        """The index's columns `keys` (names first, crc32 last), once their types are checked (a
-        damaged index must not raise TypeError)."""
-        columns = [doc[key] for key in keys]
-        names, crcs = columns[0], columns[-1]
-        if not all(isinstance(column, list) and len(column) == len(names) for column in columns):
-            raise self._error(f"index: {', '.join(keys)} must be lists of equal length")
-        if not all(isinstance(name, str) and name for name in names) or len(set(names)) != len(names):
-            raise self._error("index: stream names must be unique non-empty strings")
-        counts = [n for column in columns[1:-1] for n in column]
-        if not all(type(n) is int and n >= 0 for n in counts):
-            raise self._error(f"index: {' and '.join(keys[1:-1])} must be non-negative integers")
-        if not all(type(crc) is int and 0 <= crc < 1 << 32 for crc in crcs):
-            raise self._error("index: crc32 values must be integers from 0 to 2**32 - 1")
-        return columns
-
     def names(self) -> list[str]:
         """Stream names in stored order."""
         return list(self._names)
@@ -581,7 +470,7 @@ class ArchiveReader:
     def read(self, name: str) -> bytes:
         """The bytes of stream `name` (KeyError if there is none), checked against its CRC32."""
         offset, length, crc32 = self._entries[name]
-        with _section(self.path, f"stream {name!r}"):
+        with section(self.path, f"stream {name!r}"):
             data = self._payload[offset : offset + length].tobytes()
         if zlib.crc32(data) != crc32:
             raise self._error(f"stream {name!r}: CRC32 mismatch")

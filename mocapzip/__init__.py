@@ -15,7 +15,8 @@ spent), `archive` (compress and decompress), `legacy` (old formats, decode only)
 (the command line) install from formats/ and cli/. Beside them: `stages` (the one registry of
 stages), `convert` (`mcz convert`), `parallel` and `cluster` (the work over `-j` processes or a
 Dask cluster), `limits` (what every reader checks), `defaults` (values the CLI and API share
-without NumPy) and `progress` (progress bars).
+without NumPy), `schema` (the JSON Schema pieces meta and the input formats share) and
+`progress` (progress bars).
 """
 
 import os as _os

@@ -28,11 +28,12 @@ from mocapzip.archive import reader, settings, writer
 from mocapzip.archive.settings import SettingsError
 from mocapzip.defaults import ACL_SHELL_CM, MAX_TO_MEAN
 from mocapzip.formats.amc import Motion, parse_amc, read_amc, write_amc
-from mocapzip.formats.asf import Skeleton, parse_asf, read_asf, write_asf
+from mocapzip.formats.asf import Skeleton, read_asf, write_asf
 from mocapzip.formats.bvh import Bvh, BvhJoint, parse_bvh, read_bvh, write_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError
-from mocapzip.motion.bvh_skeleton import bvh_skeleton, file_positions, point_names
+from mocapzip.motion.bvh_skeleton import file_positions, point_names
+from mocapzip.inputs.registry import ClipApi, input_formats
 from mocapzip.motion.kinematics import Pose, forward
 from mocapzip.motion.metrics import ShellError, shell_errors
 from mocapzip.motion.skeleton import SkeletonModel
@@ -88,8 +89,9 @@ class Clip:
         # the rate the clip's files stated, else compress's --fps (default 120): ASF/AMC have no field for it
         self.fps: float = row.get("fps", archive._archive.settings.fps)
         # "amc" or "bvh": the kind of file the clip came from, which `decompress` writes (`inputs.registry`)
-        self.format: str = archive._archive.clip_format(index).name
-        self._units = archive._archive.meta["skeletons"][row["skeleton"]].get("units")  # BVH lengths
+        self._format = archive._archive.clip_format(index)
+        self.format: str = self._format.name
+        self._entry = archive._archive.meta["skeletons"][row["skeleton"]]  # its skeleton's entry in meta
         lossless = archive._archive.settings.lossless
         self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"],
                                   0.0 if lossless else row.get("max_vertex_error_cm"))
@@ -101,9 +103,7 @@ class Clip:
     def skeleton(self) -> Skeleton | list[BvhJoint]:
         """The clip's ASF skeleton, parsed (the file itself, byte for byte: `asf_text`); for a BVH
         clip, its joints (`bvh.joints`)."""
-        if self.format == "bvh":
-            return self.bvh.joints
-        return parse_asf(self.asf_text.encode("latin-1"), self._archive.meta["skeletons"][self._skeleton]["name"])
+        return self._api.skeleton(self, self._entry)
 
     @cached_property
     def asf_text(self) -> str:
@@ -133,22 +133,18 @@ class Clip:
     def channels(self) -> np.ndarray:
         """(frames, values) float64, read-only: the AMC values, bone after bone in `motion.bones`
         order; a BVH clip's frame values, in the order of its joints' CHANNELS."""
-        return self.bvh.values if self.format == "bvh" else self.motion.values
+        return getattr(self, self._api.file).values
 
     @cached_property
     def joint_names(self) -> tuple[str, ...]:
         """The joints of `positions()`: the root, then the end of every bone (BVH: every joint and
         End Site, in file order: `bvh_point_names`)."""
-        if self.format == "bvh":
-            return bvh_point_names(self.bvh)
-        return SkeletonModel.from_asf(self.skeleton).names
+        return self._api.joint_names(self)
 
     def positions(self) -> np.ndarray:
         """(frames, joints, 3) float64 joint positions in cm (`joint_positions` of this clip;
         BVH: `bvh_joint_positions`, in the archive's units)."""
-        if self.format == "bvh":
-            return bvh_joint_positions(self.bvh, self._units)
-        return joint_positions(self.skeleton, self.motion)
+        return self._api.positions(self, self._entry)
 
     def shell_error(self, source: str | os.PathLike | Motion | Bvh, shell_cm: float = ACL_SHELL_CM) -> ShellError:
         """ACL's error of this clip against its `source` (docs/acl.md): per frame and bone, the
@@ -159,8 +155,8 @@ class Clip:
         compressed with), or that file already read (a `Motion`, a `Bvh`). MocapFormatError if it
         cannot be read, or is not this clip's (its frames or joints differ)."""
         if isinstance(source, (str, os.PathLike)):
-            source = read_bvh(source) if self.format == "bvh" else read_amc(source, self.skeleton)
-        model, decoded = self._posed(self.bvh if self.format == "bvh" else self.motion)
+            source = self._api.read_source(self, source)
+        model, decoded = self._posed(getattr(self, self._api.file))
         _, original = self._posed(source)
         (frames, joints), (own_frames, own_joints) = original.positions.shape[:2], decoded.positions.shape[:2]
         if (frames, joints) != (own_frames, own_joints):
@@ -171,16 +167,20 @@ class Clip:
     def _posed(self, clip_file: Motion | Bvh) -> tuple[SkeletonModel, Pose]:
         """The model of this clip's skeleton and `clip_file` posed on it by forward kinematics (a
         BVH file's lengths in the archive's units)."""
-        if isinstance(clip_file, Bvh):
-            skeleton = bvh_skeleton(clip_file.joints, self._units, clip_file.path)
-            model, motion = skeleton.model, skeleton.motion(clip_file, lossless=False)
-        else:
-            model, motion = SkeletonModel.from_asf(self.skeleton), clip_file
+        api = next(f.api for f in input_formats() if f.api is not None and isinstance(clip_file, f.api.file_type))
+        model, motion = api.posed(self, clip_file, self._entry)
         return model, forward(model, motion.values, motion)
 
     def _only(self, kind: str, what: str) -> None:
         if self.format != kind:
             raise AttributeError(f"{self.path} is a {self.format.upper()} clip: it has no {what}")
+
+    @property
+    def _api(self) -> ClipApi:
+        """How this clip's format is read here (`InputFormat.api`)."""
+        if self._format.api is None:
+            raise AttributeError(f"{self.path} is a {self.format.upper()} clip, which the API does not read")
+        return self._format.api
 
     @property
     def _archive(self) -> reader.Archive:

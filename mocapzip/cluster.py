@@ -8,8 +8,8 @@ client (this process) does everything else, in the same order as with local work
 the archive. Each task computes what local workers would from the same item and the same state,
 so the archive is byte-identical to `-j N`'s.
 
-A task's state is what a forked worker would have inherited: its function's module's `_SHARED`,
-and the module dicts named in `parallel.SHIPPED` (the encoder's clip loader). It is pickled once
+A task's state is what a forked worker would have inherited: its function's module's
+`parallel.worker_state`, and the states shipped with every map (the encoder's clip loader). It is pickled once
 per map, sent as a task's argument (`Cluster._state`), fetched by each worker and installed there
 before its first task of the map, with the client's working folder as the worker's; a worker
 process runs one task at a time. Clips
@@ -26,7 +26,6 @@ goes away ends the run with `ClusterError`; an item's own error ends it as with 
 from __future__ import annotations
 
 import gc
-import importlib
 import logging
 import os
 import pickle
@@ -366,9 +365,7 @@ class Cluster:
         """The map's state, pickled, as a task that returns it: the scheduler holds the pickle, so it
         makes the state again if the worker holding it dies. (Scattered data cannot be made again, and
         Dask's memory manager keeps a single copy of it once no task waits for it.)"""
-        shipped = [(function.__module__, "_SHARED"), *parallel.SHIPPED]
-        blob = pickle.dumps((os.getcwd(), {(module, name): dict(getattr(importlib.import_module(module), name))
-                                           for module, name in shipped}), protocol=pickle.HIGHEST_PROTOCOL)
+        blob = pickle.dumps((os.getcwd(), parallel.map_state(function)), protocol=pickle.HIGHEST_PROTOCOL)
         state_id = uuid.uuid4().hex[:12]
         self.state_ids.add(state_id)
         import dask  # here: Dask is an optional extra, and a Cluster exists only if it is installed
@@ -391,7 +388,7 @@ class Cluster:
                         self._check_progress()
         except ClusterError:
             raise
-        except Exception as exc:  # the task's own errors come back as values (`parallel._call`): this is Dask's
+        except Exception as exc:  # the task's own errors come back as values (`parallel.call`): this is Dask's
             detail = str(exc).split(". ")[0].splitlines()[0] if str(exc) else "no detail"
             raise ClusterError(f"the Dask cluster could not run a task ({type(exc).__name__}: {detail})") from None
 
@@ -444,14 +441,14 @@ _ONE_TASK_AT_A_TIME = threading.Lock()
 
 
 def _task(state_id: str, state: bytes, function, item):
-    """In a worker: the map's state installed (unless it is already), then `parallel._call`."""
+    """In a worker: the map's state installed (unless it is already), then `parallel.call`."""
     with _ONE_TASK_AT_A_TIME:
         if _INSTALLED["id"] != state_id:
-            installed = parallel._call(lambda blob: _install(*pickle.loads(blob)), state)
+            installed = parallel.call(lambda blob: _install(*pickle.loads(blob)), state)
             if installed[2] is not None:  # the item's error, given at its turn
                 return installed
             _INSTALLED["id"] = state_id
-        return parallel._call(function, item)
+        return parallel.call(function, item)
 
 
 def _install(folder: str, state: dict) -> None:
@@ -464,10 +461,7 @@ def _install(folder: str, state: dict) -> None:
                            f"{os.uname().nodename} ({exc.strerror}): the workers must see the clips at the "
                            "same paths as this machine (docs/cluster.md)") from None
     parallel.use_one_blas_thread()
-    for (module, name), values in state.items():
-        target = getattr(importlib.import_module(module), name)
-        target.clear()
-        target.update(values)
+    for target in parallel.install_state(state):
         if not any(target is installed for installed in _INSTALLED["dicts"]):
             _INSTALLED["dicts"].append(target)
 

@@ -1,10 +1,10 @@
 """Worker processes and threads: the one place where mcz spreads work over the cores `-j` gives.
 
 Workers are forked, so they inherit what the parent holds when the pool starts (clips kept
-in memory, an opened archive, what a module put in its `_SHARED` for them) instead of
+in memory, an opened archive, what a module put in its `worker_state` for them) instead of
 receiving it pickled: only each item and its result cross between processes. Inside a
 `kept_workers` block (the encoder's classes) one pool serves every map, and each map's
-`_SHARED`, small there, is pickled to its workers once. Where fork is
+`worker_state`, small there, is pickled to its workers once. Where fork is
 not available, or one job is asked for, the work runs in the calling process, one item after
 the other, exactly as the workers would do it. Inside `mocapzip.cluster.on_cluster`, the maps
 go to a Dask cluster's workers instead, each item a task.
@@ -32,7 +32,6 @@ import os
 import pickle
 import shutil
 import signal
-import sys
 import tempfile
 import threading
 import time
@@ -73,7 +72,8 @@ def use_one_blas_thread() -> None:
 
 
 _CLUSTER: list = []  # the Dask cluster `parallel_map` and `imap` send their items to (`mocapzip.cluster`)
-SHIPPED: list[tuple[str, str]] = []  # (module, dict name): state a cluster's tasks need besides their module's _SHARED
+_STATES: dict[str, dict] = {}  # name -> the state workers read (`worker_state`)
+_SHIPPED: list[str] = []  # the states a cluster's tasks need besides their module's (`worker_state(shipped=True)`)
 
 
 def on_a_cluster() -> bool:
@@ -81,11 +81,32 @@ def on_a_cluster() -> bool:
     return bool(_CLUSTER)
 
 
-def shipped_with_tasks(module: str, name: str) -> None:
-    """Send the module-level dict `module.name` along with every map run on a Dask cluster, which
-    forked workers would have inherited: a loader's state that a mapped module's `_SHARED` refers to."""
-    if (module, name) not in SHIPPED:
-        SHIPPED.append((module, name))
+def worker_state(name: str, shipped: bool = False) -> dict:
+    """The dict that the workers of maps of module `name`'s functions read, filled by this process
+    before it maps: forked workers inherit it, `kept_workers`' get it pickled once per map, a Dask
+    worker with each map (`map_state`). `shipped`: a state every map on a cluster takes besides its
+    module's, which forked workers would have inherited (a loader that a module's state refers to)."""
+    state = _STATES.setdefault(name, {})
+    if shipped and name not in _SHIPPED:
+        _SHIPPED.append(name)
+    return state
+
+
+def map_state(function: Callable) -> dict[str, dict]:
+    """The states a map of `function` takes to a worker that did not fork from here: its module's
+    and every shipped one, as copies."""
+    return {name: dict(worker_state(name)) for name in dict.fromkeys([function.__module__, *_SHIPPED])}
+
+
+def install_state(states: dict[str, dict]) -> list[dict]:
+    """In a worker: each state's values as `map_state` took them; the dicts that now hold them."""
+    installed = []
+    for name, values in states.items():
+        target = worker_state(name)
+        target.clear()
+        target.update(values)
+        installed.append(target)
+    return installed
 
 
 _RUN_HERE: set = set()  # functions this process has run before forking workers for them (`parallel_map`)
@@ -124,7 +145,7 @@ def kept_workers(jobs: int):
     and shutdown, and each new worker's page faults as it warms a fresh heap: on the shared CMU
     set, 33 pools. The workers fork at the block's first map, so they inherit what the process
     holds then (clips kept in memory). What changes from map to map, the mapped function's module's
-    `_SHARED`, reaches them pickled, through a file each worker reads once per map: it must pickle
+    `worker_state`, reaches them pickled, through a file each worker reads once per map: it must pickle
     small (clips indexed through a module-level loader, never held in it)."""
     if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         yield
@@ -152,7 +173,7 @@ class _Kept:
         self.maps += 1
         state = os.path.join(self.folder, f"{self.maps}.pickle")
         with open(state, "wb") as file:
-            pickle.dump(sys.modules[module]._SHARED, file, protocol=pickle.HIGHEST_PROTOCOL)
+            pickle.dump(worker_state(module), file, protocol=pickle.HIGHEST_PROTOCOL)
         if self.pool is None:
             self.pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("fork"),
                                             initializer=_worker_start, initargs=(os.getpid(),))
@@ -171,19 +192,16 @@ class _Kept:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
-_INSTALLED: dict = {}  # in a kept worker: module name -> the state file last put in its `_SHARED`
+_INSTALLED: dict = {}  # in a kept worker: module name -> the state file last put in its `worker_state`
 
 
 def _call_with_state(module: str, state: str, function: Callable, item):
-    """In a kept worker: the map's `_SHARED` installed (read once per map), then `_call`."""
+    """In a kept worker: the map's `worker_state` installed (read once per map), then `call`."""
     if _INSTALLED.get(module) != state:
         with open(state, "rb") as file:
-            shared = pickle.load(file)
-        target = sys.modules[module]._SHARED
-        target.clear()
-        target.update(shared)
+            install_state({module: pickle.load(file)})
         _INSTALLED[module] = state
-    return _call(function, item)
+    return call(function, item)
 
 
 def imap(function: Callable, items: Sequence, jobs: int, window: int | None = None,
@@ -210,7 +228,7 @@ def imap(function: Callable, items: Sequence, jobs: int, window: int | None = No
     pool = ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork"),
                                initializer=_worker_start, initargs=(os.getpid(),))
     try:
-        yield from _in_order(lambda item: pool.submit(_call, function, item), _result, items,
+        yield from _in_order(lambda item: pool.submit(call, function, item), _result, items,
                              len(items) if window is None else window)
     finally:
         _shut(pool, others)
@@ -262,7 +280,7 @@ def _result(future):
 
 
 def _unpacked(outcome: tuple):
-    """What `_call` returned in a worker, as `_result` gives it."""
+    """What `call` returned in a worker, as `_result` gives it."""
     caught, result, error = outcome
     for message, category, filename, lineno in caught:
         warnings.warn_explicit(message, category, filename, lineno)
@@ -283,8 +301,9 @@ def _shut(pool: ProcessPoolExecutor, others: set) -> None:
         process.join()
 
 
-def _call(function: Callable, item) -> tuple[list, object, tuple[BaseException, str] | None]:
-    """In a worker: (warnings raised, result, None) or (warnings raised, None, (exception, its traceback)).
+def call(function: Callable, item) -> tuple[list, object, tuple[BaseException, str] | None]:
+    """What a worker runs of an item (here, or a cluster's: `mocapzip.cluster`): (warnings raised,
+    result, None) or (warnings raised, None, (exception, its traceback)).
     The warnings travel back even when the item fails, as they would have been shown before the error."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -3,10 +3,28 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from tqdm import tqdm
 
-QUIET = False  # set by the CLI's -q
+_QUIET = [False]  # no bars at all; set by `set_quiet` alone
+
+
+def set_quiet(quiet: bool) -> None:
+    """Show no progress bars from now on if `quiet` (the CLI's -q, JSON output, a bench child's job)."""
+    _QUIET[0] = bool(quiet)
+
+
+@contextmanager
+def quieted(quiet: bool = True) -> Iterator[None]:
+    """`set_quiet(quiet)` within the block, the setting before it restored after."""
+    before = _QUIET[0]
+    set_quiet(quiet)
+    try:
+        yield
+    finally:
+        set_quiet(before)
 
 
 class _Bar(tqdm):
@@ -23,4 +41,4 @@ def progress(iterable=None, **kwargs):
     Without an iterable, pass total=N and advance the bar with `.update(n)`: for work
     counted in something finer than the loop's items (frames, not classes).
     """
-    return _Bar(iterable, disable=QUIET or not sys.stderr.isatty(), leave=False, **kwargs)
+    return _Bar(iterable, disable=_QUIET[0] or not sys.stderr.isatty(), leave=False, **kwargs)

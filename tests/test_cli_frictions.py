@@ -188,9 +188,8 @@ def test_progress_counts_frames(tmp_path, shared_data, monkeypatch):
     assert kwargs["unit"] == "frame" and kwargs["total"] == summary["frames"] == sum(bar.updates)
 
 
-def test_quiet_progress_is_disabled(monkeypatch):
-    monkeypatch.setattr(progress, "QUIET", True)
-    with progress.progress(total=10, unit="frame") as bar:
+def test_quiet_progress_is_disabled():
+    with progress.quieted(), progress.progress(total=10, unit="frame") as bar:
         bar.update(10)
         assert bar.disable
 

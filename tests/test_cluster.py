@@ -308,9 +308,6 @@ def test_two_runs_on_one_scheduler_at_once(shared_data, tmp_path, two_workers):
         assert (tmp_path / f"{name}.mcz").read_bytes() == (tmp_path / f"{name}-j2.mcz").read_bytes()
 
 
-_SHARED: dict = {}  # the state `cluster.Cluster.imap` ships with `_doubled`'s map (empty here)
-
-
 def _doubled(item: int) -> int:
     return 2 * item
 

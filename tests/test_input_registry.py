@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import mocapzip
 from mocapzip.archive.reader import Archive
 from mocapzip.cli.main import main
 from mocapzip.formats.amc import Motion, read_amc
@@ -73,6 +74,17 @@ def test_a_registered_format_comes_back_byte_for_byte_lossless(chan_folder, tmp_
         assert (out / source.name).read_bytes() == source.read_bytes()
     with Archive(archive) as opened:  # the clips' format, by their skeleton's entry in meta
         assert opened.meta["skeletons"] == [{"name": sources[0].name, "format": "chan"}]
+    # info lists the skeletons of every format but ASF's, as the format describes them
+    assert json.loads(mcz("info", "--json", str(archive)))["chan_skeletons"] == [{"name": sources[0].name}]
+    assert "\nskeletons: 1 skeleton\n" in mcz("info", str(archive))
+    with mocapzip.open(archive) as opened:  # the API reads a format only as the format says (`InputFormat.api`)
+        with pytest.raises(AttributeError, match="is a CHAN clip, which the API does not read"):
+            opened[0].positions()
+
+
+def test_a_row_field_comes_with_its_schema():
+    with pytest.raises(ValueError, match="'toy': a row field comes with its schema"):
+        InputFormat("toy", (".toy",), AMC.skeleton_text, AMC.read_skeleton, AMC.read, AMC.write, row_field="toy")
 
 
 def test_a_registered_format_decodes_within_the_error(chan_folder, shared_data, tmp_path):

@@ -24,7 +24,7 @@ from mocapzip.codec.entropy.priors import stored_streams
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveReader
-from mocapzip.parallel import imap, kept_workers, parallel_map, thread_imap
+from mocapzip.parallel import imap, kept_workers, parallel_map, thread_imap, worker_state
 from mocapzip.progress import progress
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -114,7 +114,7 @@ def test_stopping_early_cancels_what_has_not_started(tmp_path, spread):
     assert _nothing_left_running()
 
 
-_SHARED: dict = {}  # what `kept_workers` sends the workers of the maps below
+_SHARED = worker_state(__name__)  # what `kept_workers` sends the workers of the maps below
 
 
 def _scaled(i: int) -> tuple[int, int]:

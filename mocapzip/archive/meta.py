@@ -17,13 +17,11 @@ import pywt
 from mocapzip.classes.modes import MAX_PATTERN_CHARS, compiled_modes
 from mocapzip.codec.segments import coded_range
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
-from mocapzip.formats.bvh import MAX_MOTION_CHARS as BVH_MOTION_CHARS
-from mocapzip.formats.bvh import NUMBER_STYLES as BVH_NUMBER_STYLES
 from mocapzip.formats.text import MAX_FRAME_RATE
 from mocapzip.formats.mcz import ArchiveError
-from mocapzip.defaults import UNITS_CM
-from mocapzip.inputs.registry import input_formats, stored_format
+from mocapzip.inputs.registry import InputFormat, input_formats, stored_format
 from mocapzip.legacy import format_of
+from mocapzip.schema import NEWLINE, record
 from mocapzip.limits import MAX_BONES_PER_SKELETON, MAX_NATURAL_MODES, MAX_FRAMES_PER_CLIP, MAX_PATH_BYTES, MAX_VALUES_PER_CLIP, MAX_VALUES_PER_FRAME
 from mocapzip.stages import stage_classes, stage_ids
 
@@ -33,86 +31,73 @@ MAX_DOF_PER_BONE = 7  # an ASF bone's channels: rx ry rz tx ty tz l
 _COUNT = {"type": "integer", "minimum": 0}
 _ERROR = {"type": "number", "minimum": 0}
 _POSITIVE = {"type": "number", "minimum": 0, "exclusiveMinimum": True}
-_NEWLINE = {"enum": ["\n", "\r\n", "\r"]}
 _STRING = {"type": "string"}
 
 
-def _record(required: dict, optional: dict | None = None) -> dict:
-    """An object with exactly these fields: unknown ones are refused, not ignored."""
-    return {"type": "object", "required": list(required), "additionalProperties": False,
-            "properties": {**required, **(optional or {})}}
-
-
-_STYLE = _record({
+_STYLE = record({
     "notation": {"enum": ["g", "f"]},
     "digits": {"type": "integer", "minimum": 0, "maximum": 40},
     "exponent_digits": {"type": "integer", "minimum": 1, "maximum": 4},
     "name_separator": {"type": "string", "pattern": "^[ \t]{1,16}$"},
-    "newline": _NEWLINE,
-    "header_newline": {"anyOf": [_NEWLINE, {"type": "null"}]},
-    "frame_newline": {"anyOf": [_NEWLINE, {"type": "null"}]},
+    "newline": NEWLINE,
+    "header_newline": {"anyOf": [NEWLINE, {"type": "null"}]},
+    "frame_newline": {"anyOf": [NEWLINE, {"type": "null"}]},
     "final_newline": {"type": "boolean"},
     "encoding": {"enum": ["utf-8", "latin-1"]},
 })
 
 _FRAME_NUMBER = {"type": "integer", "minimum": 0, "maximum": MAX_FRAME_NUMBER}
 
-# a BVH clip's text beside its values (format 8 on): its MOTION lines, and how its frame lines are written
-_BVH_TEXT = _record({
-    "motion": {"type": "string", "maxLength": BVH_MOTION_CHARS},
-    "style": _record({
-        "number": {"enum": list(BVH_NUMBER_STYLES)},
-        "separator": {"enum": [" ", "\t"]},
-        "trailing": {"type": "string", "pattern": "^[ \t]{0,16}$"},
-        "line_end": _NEWLINE,
-    }, {"final_line_end": {"type": "boolean"}, "after": {"type": "string", "pattern": "^[ \t\r\n]{0,64}$"}}),
-}, {"extra_root": {"enum": [True]}})  # lossy: the extra root's channels are in stream extra_root/NNNNN
-
-_SEGMENT = _record({
+_SEGMENT = record({
     "first": _COUNT, "frames": {"type": "integer", "minimum": 1}, "class": _COUNT, "stream": _STRING,
     "error_cm": _ERROR, "max_error_cm": _ERROR,
 })
 
-_CLIP = _record(
-    {
-        "path": _STRING,
-        "frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
-        "first_frame": {"type": "integer", "minimum": 0, "maximum": MAX_FRAME_NUMBER},
-        "header": {"type": "array", "items": _STRING},
-        "bones": {"type": "array", "minItems": 1, "maxItems": MAX_BONES_PER_SKELETON + 1,
-                  "items": {"type": "string", "pattern": r"^\S+$"}},
-        "counts": {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": MAX_DOF_PER_BONE}},
-        "angle_unit": {"enum": ["deg", "rad"]},
-        "style": _STYLE,
-        "skeleton": _COUNT,
-        "class": _COUNT,
-        "error_cm": _ERROR,
-        "max_error_cm": _ERROR,
-    },
-    {
-        "dropped_frames": {"type": "integer", "minimum": 1},
-        "twist_flips": {"type": "object", "additionalProperties": {"type": "array", "items": _COUNT}},
-        "p99_error_cm": _ERROR,
-        "max_vertex_error_cm": _ERROR,  # format 13 on: the worst shell vertex, ACL's metric (settings.shell_cm)
-        "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
-        "planted_stances": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},  # format 9 on
-        "tensor_at": {"type": "array", "minItems": 1, "maxItems": MAX_NATURAL_MODES, "items": _COUNT},  # format 11 on
-        "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
-        "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
-        "fps": {"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": MAX_FRAME_RATE},  # format 7 on
-        "bvh": _BVH_TEXT,  # format 8 on: a BVH clip (its skeleton's format is "bvh")
-        # --repair-glitches (format 6 on): [first, last AMC frame numbers, largest joint error in cm] per run
-        "repaired": {"type": "array", "maxItems": MAX_FRAMES_PER_CLIP, "items": {
-            "type": "array", "minItems": 3, "maxItems": 3,
-            "items": [_FRAME_NUMBER, _FRAME_NUMBER, _ERROR]}},
-    },
-)
+
+def _clip(formats: tuple[InputFormat, ...]) -> dict:
+    """A clip's row, with the row fields of `formats` (`InputFormat.row_field`)."""
+    return record(
+        {
+            "path": _STRING,
+            "frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
+            "first_frame": {"type": "integer", "minimum": 0, "maximum": MAX_FRAME_NUMBER},
+            "header": {"type": "array", "items": _STRING},
+            "bones": {"type": "array", "minItems": 1, "maxItems": MAX_BONES_PER_SKELETON + 1,
+                      "items": {"type": "string", "pattern": r"^\S+$"}},
+            "counts": {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": MAX_DOF_PER_BONE}},
+            "angle_unit": {"enum": ["deg", "rad"]},
+            "style": _STYLE,
+            "skeleton": _COUNT,
+            "class": _COUNT,
+            "error_cm": _ERROR,
+            "max_error_cm": _ERROR,
+        },
+        {
+            "dropped_frames": {"type": "integer", "minimum": 1},
+            "twist_flips": {"type": "object", "additionalProperties": {"type": "array", "items": _COUNT}},
+            "p99_error_cm": _ERROR,
+            "max_vertex_error_cm": _ERROR,  # format 13 on: the worst shell vertex, ACL's metric (settings.shell_cm)
+            "patched_frames": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},
+            "planted_stances": {"type": "integer", "minimum": 1, "maximum": MAX_FRAMES_PER_CLIP},  # format 9 on
+            # format 11 on
+            "tensor_at": {"type": "array", "minItems": 1, "maxItems": MAX_NATURAL_MODES, "items": _COUNT},
+            "segments": {"type": "array", "minItems": 2, "items": _SEGMENT},
+            "segment_overlap": {"type": "integer", "minimum": 0, "maximum": MAX_FRAMES_PER_CLIP},
+            "fps": {"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": MAX_FRAME_RATE},  # format 7 on
+            **{f.row_field: f.row_schema for f in formats if f.row_field},  # format 8 on: "bvh", a BVH clip's
+            # --repair-glitches (format 6 on): [first, last AMC frame numbers, largest joint error in cm] per run
+            "repaired": {"type": "array", "maxItems": MAX_FRAMES_PER_CLIP, "items": {
+                "type": "array", "minItems": 3, "maxItems": 3,
+                "items": [_FRAME_NUMBER, _FRAME_NUMBER, _ERROR]}},
+        },
+    )
+
 
 # one record per registered transform: its id and its parameters' schemas (`param_schema`)
-_TRANSFORM = {"anyOf": [_record({"id": {"enum": [codec_id]}, **cls.param_schema})
+_TRANSFORM = {"anyOf": [record({"id": {"enum": [codec_id]}, **cls.param_schema})
                         for codec_id, cls in stage_classes("transform").items()]}
 
-_SETTINGS = _record(
+_SETTINGS = record(
     {
         "error_cm": _POSITIVE,
         "representation": {"enum": list(stage_ids("representation"))},
@@ -141,40 +126,45 @@ _SETTINGS = _record(
     },
 )
 
-_AUTO_GROUP = _record(
+_AUTO_GROUP = record(
     {"width": _COUNT, "clips": _COUNT, "k": _COUNT, "method": _STRING, "estimated_bytes": _COUNT,
-     "candidates": {"type": "array", "items": _record({"k": _COUNT, "method": _STRING, "bytes": _COUNT},
+     "candidates": {"type": "array", "items": record({"k": _COUNT, "method": _STRING, "bytes": _COUNT},
                                                        {"seed": {"type": ["integer", "null"]}})}},
 )
 
-SCHEMA = {"$schema": "http://json-schema.org/draft-04/schema#", **_record(
-    {
-        "tool": _STRING,
-        "settings": _SETTINGS,
-        "skeletons": {"type": "array", "items": _record({"name": _STRING}, {  # format 8 on: BVH hierarchies
-            "format": _STRING,  # an input format's name ("bvh"; `inputs.registry`); absent: an ASF
-            "encoding": {"enum": ["utf-8", "latin-1"]},
-            "units": {"enum": [*UNITS_CM, None]}, "units_inferred": {"type": "boolean"}})},
-        "classes": {"type": "array", "items": _record({"name": _STRING, "components": _COUNT, "clips": _COUNT,
-                                                       "frames": _COUNT}, {  # --model tensor (format 11 on)
-            "model": {"enum": ["pca", "tensor"]},
-            "modes": {"type": "array", "minItems": 1, "maxItems": MAX_NATURAL_MODES, "items": _STRING},
-            "levels": {"type": "array", "items": {"type": "array", "items": _STRING}}})},
-        "clips": {"type": "array", "items": _CLIP},
-    },
-    {
-        "auto_classes": {"type": "array", "items": _AUTO_GROUP},
-        "skipped": {"type": "array", "items": _record({"path": _STRING, "error": _STRING})},
-    },
-)}  # draft 4: an "integer" is one in the JSON text too (later drafts also take 5.0)
+
+def schema(formats: tuple[InputFormat, ...]) -> dict:
+    """Meta's schema, with the fields in meta of `formats` (`InputFormat.row_schema`, `entry_schema`)."""
+    return {"$schema": "http://json-schema.org/draft-04/schema#", **record(
+        {
+            "tool": _STRING,
+            "settings": _SETTINGS,
+            "skeletons": {"type": "array", "items": record({"name": _STRING}, {  # format 8 on: BVH hierarchies
+                "format": _STRING,  # an input format's name ("bvh"; `inputs.registry`); absent: an ASF
+                **{name: kind for f in formats for name, kind in f.entry_schema.items()}})},
+            "classes": {"type": "array", "items": record({"name": _STRING, "components": _COUNT, "clips": _COUNT,
+                                                           "frames": _COUNT}, {  # --model tensor (format 11 on)
+                "model": {"enum": ["pca", "tensor"]},
+                "modes": {"type": "array", "minItems": 1, "maxItems": MAX_NATURAL_MODES, "items": _STRING},
+                "levels": {"type": "array", "items": {"type": "array", "items": _STRING}}})},
+            "clips": {"type": "array", "items": _clip(formats)},
+        },
+        {
+            "auto_classes": {"type": "array", "items": _AUTO_GROUP},
+            "skipped": {"type": "array", "items": record({"path": _STRING, "error": _STRING})},
+        },
+    )}  # draft 4: an "integer" is one in the JSON text too (later drafts also take 5.0)
+
+
+SCHEMA = schema(tuple(input_formats()))  # of the formats mcz registers itself (docs/format.md renders it)
 
 
 @functools.cache
-def _schema_check(detailed: bool):
-    """The schema compiled. Archives are checked without detailed exceptions, whose code took
+def _schema_check(detailed: bool, formats: tuple[InputFormat, ...]):
+    """The schema of `formats` compiled. Archives are checked without detailed exceptions, whose code took
     0.03 s more to compile in every process that opens an archive; meta that fails is checked
     again with them, for the failing field's name and the whole problem (`validate`)."""
-    return fastjsonschema.compile(SCHEMA, detailed_exceptions=detailed)
+    return fastjsonschema.compile(schema(formats), detailed_exceptions=detailed)
 
 
 def validate(meta, stream_names: list[str], archive_path: str, format_version: int) -> dict[str, tuple[str, int]]:
@@ -184,11 +174,12 @@ def validate(meta, stream_names: list[str], archive_path: str, format_version: i
     def fail(field: str, problem: str) -> ArchiveError:
         return ArchiveError(f"meta: {field}: {problem}", archive_path)
 
+    formats = tuple(input_formats())
     try:
-        _schema_check(detailed=False)(meta)
+        _schema_check(False, formats)(meta)
     except fastjsonschema.JsonSchemaValueException as exc:
         try:
-            _schema_check(detailed=True)(meta)  # the same checks, naming the failing field
+            _schema_check(True, formats)(meta)  # the same checks, naming the failing field
         except fastjsonschema.JsonSchemaValueException as named:
             exc = named
         name = exc.name or ""

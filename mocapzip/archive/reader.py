@@ -39,14 +39,14 @@ from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError, ArchiveReader, parse_json
 from mocapzip.formats.text import (MAX_ABS_VALUE, check_folders, check_inside, check_not_folders, in_value_range,
                                    write_file_atomically)
-from mocapzip.inputs.registry import InputFormat, stored_format
+from mocapzip.inputs.registry import InputFormat, input_formats, stored_format
 from mocapzip.legacy import Format
 from mocapzip.legacy import streams as old_streams
 from mocapzip.limits import MAX_ABS_POSE, MAX_DECODED_STREAM_BYTES
 from mocapzip.motion.contacts import foot_joints
 from mocapzip.motion.skeleton import ChannelLayout, SkeletonModel
 from mocapzip.motion.timewarp import path_of_moves
-from mocapzip.parallel import imap, one_blas_thread, thread_imap
+from mocapzip.parallel import imap, one_blas_thread, thread_imap, worker_state
 from mocapzip.progress import progress
 from mocapzip.representations.positions import DegeneratePose, flips_from_ranges
 from mocapzip.representations.weighted import DecodeTail, skeleton_params
@@ -459,7 +459,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
 
 FILES_AHEAD = 2  # files made ahead of the one being written, per job: enough to keep every thread or worker busy
 
-_SHARED: dict = {}  # the archive the forked workers decode from (`Archive._made_in_processes`)
+_SHARED = worker_state(__name__)  # the archive the forked workers decode from (`Archive._made_in_processes`)
 
 
 def _kept(blocks: Iterator[bytes], keep: bool) -> list[bytes] | None:
@@ -496,9 +496,10 @@ def info(archive_path) -> dict:
         "tool": meta["tool"],
         "settings": meta["settings"],
         "skeletons": len(meta["skeletons"]),
-        # BVH hierarchies (format 8 on): the unit of their lengths, and whether compress inferred it
-        "bvh_skeletons": [{k: s[k] for k in ("name", "units", "units_inferred")} for s in meta["skeletons"]
-                          if s.get("format") == "bvh"],
+        # each format's but ASF's (format 8 on; `InputFormat.info`): BVH's, the unit of their lengths and
+        # whether compress inferred it
+        **{f"{f.name}_skeletons": f.info([s for s in meta["skeletons"] if stored_format(s) is f])
+           for f in input_formats() if not f.asf_skeletons},
         "classes": meta["classes"],
         "auto_classes": meta.get("auto_classes", []),
         "clips": [_info_row(r, meta["settings"]["fps"]) for r in meta["clips"]],

@@ -332,7 +332,7 @@ def _child_main() -> None:
     from mocapzip import progress as progress_module
 
     job = json.loads(sys.stdin.read())
-    progress_module.QUIET = job.get("quiet", False)
+    progress_module.set_quiet(job.get("quiet", False))
     warnings.simplefilter("ignore")
     try:
         answer = _CHILD_OPS[job["op"]](job)

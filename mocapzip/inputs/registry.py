@@ -13,32 +13,38 @@ without one is an ASF, whose clips are AMC files (as before format 8).
 ASF/AMC (`AMC`) and BVH (`BVH`) are registered here; their parsers live in `mocapzip.formats`.
 A new format is its parser and one `register(InputFormat(...))`: a name, suffixes, the skeleton's
 text, a skeleton reader, a clip reader and a writer (tests/test_input_registry.py registers one
-in a test). What only some formats need (a row field of their own, rules meta checks, an extra
-root kept exactly) has defaults that do nothing.
+in a test). What only some formats need (a row field of their own and fields of their skeletons'
+entries, with their JSON Schemas, which meta's schema takes from here; rules meta checks; what
+`mcz info` says of their skeletons; how the API's `Clip` reads their clips; an extra root kept
+exactly) has defaults that do nothing.
 """
 
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from mocapzip.formats.amc import amc_blocks, read_amc
+from mocapzip.formats.amc import Motion, amc_blocks, read_amc
 from mocapzip.formats.asf import Skeleton, parse_asf, read_asf_bytes
-from mocapzip.formats.bvh import BvhStyle, motion_lines_problem, parse_hierarchy, read_bvh, read_hierarchy, split_header
+from mocapzip.defaults import UNITS_CM
+from mocapzip.formats.bvh import MAX_MOTION_CHARS, NUMBER_STYLES, Bvh, BvhStyle, motion_lines_problem, parse_hierarchy
+from mocapzip.formats.bvh import read_bvh, read_hierarchy, split_header
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import detect_encoding
-from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout, unmodelled
+from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout, file_positions, point_names, unmodelled
+from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
+from mocapzip.schema import NEWLINE, record
 
 if TYPE_CHECKING:
     from pathlib import Path
 
     from mocapzip.archive.reader import Archive
-    from mocapzip.formats.amc import Motion
     from mocapzip.inputs.discover import ClipSource
 
 
@@ -76,6 +82,19 @@ class Extras(NamedTuple):
 
 
 
+class ClipApi(NamedTuple):
+    """What the API's `Clip` (`mocapzip.api`) does the format's own way (`InputFormat.api`). Each
+    hook takes the clip; `entry` is its skeleton's entry in meta."""
+
+    file: str  # the clip's attribute that is its file as decompress writes it, read back: `motion`, `bvh`
+    file_type: type  # that file's type (`Motion`, `Bvh`): what `Clip.shell_error` takes already read
+    skeleton: Callable  # (clip, entry) -> its skeleton: an ASF `Skeleton`, a BVH file's joints
+    joint_names: Callable  # (clip) -> the joints of `positions`, in order
+    positions: Callable  # (clip, entry) -> (frames, joints, 3) positions in cm
+    read_source: Callable  # (clip, path) -> a source file of the clip, read as `file_type`
+    posed: Callable  # (clip, file of `file_type`, entry) -> (model, the channels `forward` takes)
+
+
 @dataclass(frozen=True, eq=False)
 class InputFormat:
     """One kind of clip file (see the module doc). The hooks take what they need as arguments."""
@@ -100,7 +119,13 @@ class InputFormat:
     stored_skeleton: Callable[[bytes, dict, bool], tuple] | None = None
     extras: Callable[[SourceMotion, ClipSource, bool], Extras] = lambda read, source, lossless: Extras({}, None)
     row_field: str | None = None  # a field of the clip rows in meta that only this format's clips have
-    entry_fields: frozenset[str] = frozenset()  # `SourceSkeleton.fields`' names, which every entry of its skeletons has
+    row_schema: dict | None = None  # its JSON Schema, in meta's schema (`archive.meta.schema`)
+    # `SourceSkeleton.fields`' names, which every entry of its skeletons has, and their JSON Schemas
+    entry_schema: dict[str, dict] = field(default_factory=dict)
+    # of those, what `mcz info` reports of each of its skeletons (its JSON, `<name>_skeletons`), beside its name
+    info_fields: tuple[str, ...] = ()
+    # (its skeletons, as `mcz info --json` reports them) -> what `mcz info` says of them
+    describe_skeletons: Callable[[list[dict]], str] | None = None
     # (row, index, fail) -> streams the row needs beyond its clip's: meta's rules for this format's rows
     check_row: Callable[[dict, int, Callable], list[str]] = lambda row, index, fail: []
     # (entry, index, lossless, fail): meta's rules for the fields of this format's skeleton entries
@@ -108,6 +133,29 @@ class InputFormat:
     # `mcz inspect` without --check reads its clips as lossless coding does: every channel of the file,
     # no model needed (BVH); else as lossy coding does (an AMC's cut last frame dropped)
     inspects_lossless: bool = False
+    api: ClipApi | None = None  # how the API's `Clip` reads its clips (None: the API shows only what every clip has)
+
+    def __post_init__(self):
+        if (self.row_field is None) != (self.row_schema is None):
+            raise ValueError(f"input format {self.name!r}: a row field comes with its schema")
+
+    @property
+    def entry_fields(self) -> frozenset[str]:
+        """The fields of its skeletons' entries in meta beyond name and format."""
+        return frozenset(self.entry_schema)
+
+    def info(self, entries: list[dict]) -> list[dict] | None:
+        """What `mcz info` reports of its skeletons, the `entries` in meta of this format (None: an
+        ASF's, which are reported as the skeletons of no other format, as before format 8)."""
+        if self.asf_skeletons:
+            return None
+        return [{k: entry[k] for k in ("name", *self.info_fields)} for entry in entries]
+
+    def described(self, skeletons: list[dict]) -> str:
+        """What `mcz info` says of `skeletons` (as `info` reports them): how many, and more if the format says."""
+        if self.describe_skeletons is not None:
+            return self.describe_skeletons(skeletons)
+        return f"{len(skeletons):,} {self.skeleton_kind}{'' if len(skeletons) == 1 else 's'}"
 
     @property
     def asf_skeletons(self) -> bool:
@@ -204,9 +252,23 @@ def _check_amc_row(row: dict, index: int, fail) -> list[str]:
     return []
 
 
+def _asf_model(clip) -> SkeletonModel:
+    return SkeletonModel.from_asf(clip.skeleton)
+
+
+_AMC_API = ClipApi(
+    "motion", Motion,
+    skeleton=lambda clip, entry: parse_asf(clip.asf_text.encode("latin-1"), entry["name"]),
+    joint_names=lambda clip: _asf_model(clip).names,
+    positions=lambda clip, entry: forward(_asf_model(clip), clip.motion.values, clip.motion).positions,
+    read_source=lambda clip, path: read_amc(path, clip.skeleton),
+    posed=lambda clip, motion, entry: (_asf_model(clip), motion))
+
+
 AMC = register(InputFormat(
     DEFAULT_FORMAT, (".amc",), read_asf_bytes, _read_asf, _read_amc, _write_amc, skeleton_suffix=".asf",
-    skeleton_kind="ASF", check_row=_check_amc_row))
+    skeleton_kind="ASF", check_row=_check_amc_row, api=_AMC_API,
+    describe_skeletons=lambda skeletons: f"{len(skeletons):,} ASF skeleton{'' if len(skeletons) == 1 else 's'}"))
 
 
 # --------------------------------------------------------------------------- BVH
@@ -331,8 +393,47 @@ def _check_bvh_row(row: dict, index: int, fail) -> list[str]:
     return [f"extra_root/{index:05d}"] if "extra_root" in row["bvh"] else []
 
 
+# a BVH clip's text beside its values (format 8 on): its MOTION lines, and how its frame lines are written
+_BVH_ROW = record({
+    "motion": {"type": "string", "maxLength": MAX_MOTION_CHARS},
+    "style": record({
+        "number": {"enum": list(NUMBER_STYLES)},
+        "separator": {"enum": [" ", "\t"]},
+        "trailing": {"type": "string", "pattern": "^[ \t]{0,16}$"},
+        "line_end": NEWLINE,
+    }, {"final_line_end": {"type": "boolean"}, "after": {"type": "string", "pattern": "^[ \t\r\n]{0,64}$"}}),
+}, {"extra_root": {"enum": [True]}})  # lossy: the extra root's channels are in stream extra_root/NNNNN
+
+_HIERARCHY_ENTRY = {"encoding": {"enum": ["utf-8", "latin-1"]},  # of its text
+                    "units": {"enum": [*UNITS_CM, None]}, "units_inferred": {"type": "boolean"}}
+
+
+def _described_hierarchies(skeletons: list[dict]) -> str:
+    """How many BVH hierarchies of each unit, and whether compress inferred it (`mcz info`)."""
+    units = Counter((s["units"], s["units_inferred"]) for s in skeletons)
+    return ", ".join(f"{n:,} BVH {'hierarchy' if n == 1 else 'hierarchies'} (units: {unit}, "
+                     f"{'inferred from the skeleton' if inferred else 'given by --units' if unit else 'not known'})"
+                     for (unit, inferred), n in sorted(units.items(), key=str))
+
+
+def _posed_bvh(clip, bvh: Bvh, entry: dict) -> tuple[SkeletonModel, Motion]:
+    """A BVH file's model and channels, its lengths in the archive's units (`BvhSkeleton.motion`, lossy)."""
+    skeleton = bvh_skeleton(bvh.joints, entry["units"], bvh.path)
+    return skeleton.model, skeleton.motion(bvh, lossless=False)
+
+
+_BVH_API = ClipApi(
+    "bvh", Bvh,
+    skeleton=lambda clip, entry: clip.bvh.joints,
+    joint_names=lambda clip: point_names(clip.bvh.joints),
+    positions=lambda clip, entry: file_positions(clip.bvh, entry["units"]),
+    read_source=lambda clip, path: read_bvh(path),
+    posed=_posed_bvh)
+
+
 BVH = register(InputFormat(
     "bvh", (".bvh",), _bvh_hierarchy, _read_hierarchy_text, _read_bvh, _write_bvh, skeleton_kind="BVH hierarchy",
-    stored_skeleton=_stored_hierarchy, extras=_bvh_extras, row_field="bvh",
-    entry_fields=frozenset({"encoding", "units", "units_inferred"}), check_row=_check_bvh_row,
-    check_entry=_check_bvh_entry, inspects_lossless=True))
+    stored_skeleton=_stored_hierarchy, extras=_bvh_extras, row_field="bvh", row_schema=_BVH_ROW,
+    entry_schema=_HIERARCHY_ENTRY, info_fields=("units", "units_inferred"),
+    describe_skeletons=_described_hierarchies, check_row=_check_bvh_row, check_entry=_check_bvh_entry,
+    inspects_lossless=True, api=_BVH_API))

@@ -14,7 +14,7 @@ from mocapzip.codec.basis import ClassBasis, read_header, unpack
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.codec.entropy.coefficients import check_matrix_shape, decode_matrices, matrix_shapes
 from mocapzip.codec.entropy.zstd import decode_ints, unpack_blobs
-from mocapzip.formats.mcz import parse_json
+from mocapzip.formats.mcz_checks import parse_json
 from mocapzip.limits import MAX_VALUES_PER_CLIP
 from mocapzip.stages import Stage, register
 

@@ -29,7 +29,7 @@ from mocapzip.codec.entropy.zstd import encode_ints, estimated_size
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.motion.kinematics import forward
-from mocapzip.parallel import parallel_map
+from mocapzip.parallel import parallel_map, worker_state
 from mocapzip.ratecontrol.encode import ROOT_STEP_RATIO, pca_share
 from mocapzip.ratecontrol.search import largest_step, largest_step_power_law
 from mocapzip.ratecontrol.target import CodingTarget
@@ -190,7 +190,7 @@ class ByteProxy:
         return int(basis + clip_bytes)
 
 
-_SHARED: dict = {}  # what forked calibration workers read
+_SHARED = worker_state(__name__)  # what forked calibration workers read
 
 
 def _basis_bytes(pca: PcaBasis, q: int, target: CodingTarget) -> int:

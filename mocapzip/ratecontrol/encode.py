@@ -31,7 +31,7 @@ from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.inputs.clip import FinalCheck
-from mocapzip.parallel import parallel_map
+from mocapzip.parallel import parallel_map, worker_state
 from mocapzip.ratecontrol.max_error import Achieved, TargetError, achieved, smallest_within
 from mocapzip.ratecontrol.planted_feet import planted
 from mocapzip.ratecontrol.proxy import CodingProxy, TruncationProxy
@@ -77,7 +77,8 @@ def component_weights(variances: np.ndarray) -> np.ndarray:
     return (np.maximum(variances, 1e-30) / max(variances[0], 1e-30)) ** (TOLERANCE_EXPONENT / 2)
 
 
-_SHARED: dict = {}  # what the workers of a class's maps read (its clips by index: each loads them, never pickled)
+# what the workers of a class's maps read (its clips by index: each loads them, never pickled)
+_SHARED = worker_state(__name__)
 
 
 def encode_class(clips, transform, target: CodingTarget, jobs: int = 1,

@@ -25,7 +25,7 @@ from mocapzip.codec.foot_lock import Stances
 from mocapzip.codec.patches import FramePatches
 from mocapzip.codec.pca import CovarianceAccumulator
 from mocapzip.inputs.clip import ClipReader, ClipsOnDemand, LoadedClip
-from mocapzip.parallel import imap, kept_workers, on_a_cluster, shipped_with_tasks
+from mocapzip.parallel import imap, kept_workers, on_a_cluster, worker_state
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.encode import ClassCoding, encode_class
 from mocapzip.ratecontrol.max_error import Achieved
@@ -195,7 +195,7 @@ def _class_codings(work: list[_ClassWork], transform, target: CodingTarget, jobs
         _SHARED.clear()
 
 
-_SHARED: dict = {}  # what a Dask worker's class tasks read (`_class_task`)
+_SHARED = worker_state(__name__)  # what a Dask worker's class tasks read (`_class_task`)
 
 
 def _class_task(k: int) -> _ClassCoding:
@@ -217,8 +217,9 @@ def _coding_of(work: _ClassWork, transform, target: CodingTarget, jobs: int) -> 
     return _ClassCoding(*encode_tensor_class(list(clips), list(work.grid.at), transform, target))
 
 
-_CODING: dict = {}  # the reader of the clips being coded, which the kept workers inherit (`_load_unit`)
-shipped_with_tasks(__name__, "_CODING")  # a Dask worker gets it with each map instead
+# the reader of the clips being coded, which the kept workers inherit (`_load_unit`); a Dask worker
+# gets it with each map instead
+_CODING = worker_state(f"{__name__}.reader", shipped=True)
 
 
 def _load_unit(unit: Unit) -> LoadedClip:

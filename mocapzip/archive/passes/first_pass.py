@@ -32,7 +32,7 @@ from mocapzip.inputs.clip import ClipReader, LoadedClip
 from mocapzip.inputs.discover import ClipSource, record_skip
 from mocapzip.inputs.registry import InputFormat, SourceSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX
-from mocapzip.parallel import imap, on_a_cluster
+from mocapzip.parallel import imap, on_a_cluster, worker_state
 from mocapzip.progress import progress
 from mocapzip.ratecontrol.max_error import TargetError
 
@@ -193,7 +193,7 @@ def _skeletons_of(sources: list[ClipSource], reader: ClipReader) -> tuple[tuple[
     return tuple(first.values()), tuple(number[id(reader.skeleton(source))] for source in sources)
 
 
-_SHARED: dict = {}  # what the forked workers of the first pass read (`_read_clip`)
+_SHARED = worker_state(__name__)  # what the forked workers of the first pass read (`_read_clip`)
 
 
 def _read_clip(source: ClipSource) -> tuple[LoadedClip, bytes | None] | MocapFormatError | OSError:

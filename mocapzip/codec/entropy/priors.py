@@ -12,7 +12,7 @@ from __future__ import annotations
 from mocapzip.codec.clip_stream import CodedClip
 from mocapzip.codec.entropy.coefficients import Priors
 from mocapzip.codec.entropy.zstd import encode_bytes
-from mocapzip.parallel import parallel_map
+from mocapzip.parallel import parallel_map, worker_state
 from mocapzip.progress import progress
 
 # clip streams are held coded "context" until all are coded: "primed" needs priors trained on every clip
@@ -44,7 +44,7 @@ def stored_streams(interim: dict[str, bytes], coder: str, jobs: int = 1) -> tupl
     return "context", interim
 
 
-_SHARED: dict = {}  # the priors the forked workers code the clips from (`_primed_stream`)
+_SHARED = worker_state(__name__)  # the priors the forked workers code the clips from (`_primed_stream`)
 
 
 def _interim_matrices(stream: bytes) -> list:
