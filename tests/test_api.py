@@ -65,7 +65,8 @@ def test_clips_by_path_and_position():
         assert archive[-1].path == archive[1].path == "64_01.amc"
         report = json.loads(CliRunner().invoke(main, ["info", "--json", str(GOLDEN_LOSSY)]).output)
         assert [tuple(clip.error) for clip in archive] == [
-            (row["error_cm"], row["p99_error_cm"], row["max_error_cm"]) for row in report["clips"]]
+            (row["error_cm"], row["p99_error_cm"], row["max_error_cm"], row.get("max_vertex_error_cm"))
+            for row in report["clips"]]
         with pytest.raises(KeyError, match="no clip '10_01.amc'"):
             archive["10_01.amc"]
         with pytest.raises(IndexError):
@@ -105,7 +106,7 @@ def test_a_closed_archive_keeps_what_was_decoded_and_refuses_more():
 def test_a_lossless_archive_reports_zero_error_and_exact_values(shared_data):
     with mocapzip.open(GOLDEN_LOSSY.with_name("lossless_v1.mcz")) as archive:
         clip = archive[0]
-        assert clip.error == mocapzip.ClipFidelity(0.0, 0.0, 0.0)
+        assert clip.error == mocapzip.ClipFidelity(0.0, 0.0, 0.0, 0.0)
         source = mocapzip.read_amc(shared_data / "cmu" / "09" / clip.path.split("/")[-1])
         assert np.array_equal(clip.channels, source.values)
 
