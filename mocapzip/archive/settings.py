@@ -36,9 +36,9 @@ class Settings:
     repair_glitches: bool = False  # joints a source glitch throws off are left to the decoder, not held to the bounds
     plant_feet: bool = False  # the decoder holds the source's planted feet still (codec.foot_lock; format 9 on)
     representation: str = "aligned"
-    # the temporal transform (a registered stage's config): the DCT, with the first 6 columns of each
+    # the temporal transform (a registered stage's config): the DCT, with the first 8 columns of each
     # matrix coded by their ends (`codec.temporal.EdgeDctTransform`; format 13 on)
-    transform: dict = field(default_factory=lambda: {"id": "dct-edges", "edge_columns": 6})
+    transform: dict = field(default_factory=lambda: {"id": "dct-edges", "edge_columns": 8})
     classes: str = "pooled"
     split: list[float] | None = None  # forced R, P, T shares of error_cm
     dead_zone: float = 0.2
