@@ -425,7 +425,7 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
     with Archive(archive_path) as archive:
         archive.verify_checksums()  # a damaged archive is refused before any file is written
         chosen = {i for i, row in enumerate(archive.clips)
-                  if not patterns or any(fnmatch.fnmatch(row["path"], p) for p in patterns)}
+                  if not patterns or any(path_matches(row["path"], p) for p in patterns)}
         if not chosen:
             raise MocapFormatError(f"no clip matches {', '.join(patterns)}", archive_path)
         folders = {PurePosixPath(archive.clips[i]["path"]).parent for i in chosen}
@@ -445,6 +445,12 @@ def decompress(archive_path, out_dir, patterns=(), force: bool = False, jobs: in
                 frames += archive.clips[index]["frames"] if kind == "motion" else 0
                 bar.update()
     return {"clips": len(chosen), "frames": frames, "files": len(targets), "output": os.fspath(out)}
+
+
+def path_matches(path: str, pattern: str) -> bool:
+    """Whether a clip's stored `path` ("09/09_01.amc") or its file's name ("09_01.amc") matches the
+    shell-style `pattern` (case-sensitive on every system): "09_*" finds what "09/*" does."""
+    return fnmatch.fnmatchcase(path, pattern) or fnmatch.fnmatchcase(PurePosixPath(path).name, pattern)
 
 
 FILES_AHEAD = 2  # files made ahead of the one being written, per job: enough to keep every thread or worker busy
