@@ -259,38 +259,18 @@ def stated_frame_rate(lines) -> float | None:
     return None
 
 
-_EXACT_POWERS = 22  # 10**n is exact in float64 up to n = 22
-
-
 def as_printed(values: np.ndarray, notation: str, digits: int) -> np.ndarray:
     """`values` as a writer prints them with `%.<digits><notation>` ("g" or "f") and a reader reads
     them back (`float('%.6g' % v)` of each), without the text: a decoded clip's values exactly as
-    its file gives them. Rounded in NumPy; a value within a few ulps of a tie, or outside what
-    exact powers of ten reach, is printed and read in Python (rare: a handful per clip)."""
-    values = np.asarray(values, dtype=np.float64)
-    if values.size == 0:
-        return values.copy()
-    magnitude = np.abs(values)
-    nonzero = magnitude > 0
-    if notation == "g":
-        exponent = np.floor(np.log10(np.where(nonzero, magnitude, 1.0)))
-        shift = (max(int(digits), 1) - 1 - exponent).astype(np.int64)
-    else:
-        shift = np.full(values.shape, int(digits), dtype=np.int64)
-    fast = nonzero & (np.abs(shift) <= _EXACT_POWERS) & (magnitude < 1e15)
-    power = 10.0 ** np.abs(np.where(fast, shift, 0))
-    up = shift >= 0  # scaled = values * 10**shift, each one correctly rounded operation
-    scaled = np.where(up, values * power, values / power)
-    whole = np.rint(scaled)
-    out = np.where(up, whole / power, whole * power)
-    # a tie, or near one, may round either way in the scaled value: print it instead; and a
-    # 'g' value at the edge of its decade (log10's floor may be one off) likewise
-    tie = np.abs(np.abs(scaled - np.trunc(scaled)) - 0.5) <= 4 * np.spacing(np.abs(scaled)) + 1e-9
-    edge = np.abs(whole) >= 10.0 ** max(int(digits), 1) if notation == "g" else False
-    edge = edge | ((np.abs(whole) < 10.0 ** (max(int(digits), 1) - 1)) if notation == "g" else False)
-    hard = (~fast & nonzero) | (fast & (tie | (edge & nonzero)))
-    out = np.where(nonzero, out, values)  # 0 and -0 as they are
-    spec = f"%.{int(digits)}{notation}"
-    for at in zip(*np.nonzero(hard)):
-        out[at] = float(spec % values[at])
+    its file gives them, made in compiled code (`numbers_compiled.printed_values`); the rare value
+    it leaves (an exact tie, beyond its ranges) is printed and read in Python."""
+    from mocapzip.formats.numbers_compiled import printed_values
+
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    out = np.empty_like(values)
+    digits = int(digits) if notation == "f" else max(int(digits), 1)  # %.0g is %.1g
+    if printed_values(values.ravel(), notation == "f", digits, out.ravel()):
+        spec = f"%.{int(digits)}{notation}"
+        for at in zip(*np.nonzero(np.isnan(out))):
+            out[at] = float(spec % values[at])
     return out

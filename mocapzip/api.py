@@ -22,7 +22,6 @@ import re
 import os
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager, nullcontext
-from dataclasses import replace
 from functools import cached_property
 from pathlib import Path, PurePosixPath
 from typing import NamedTuple
@@ -263,24 +262,28 @@ class Clip:
 
     @cached_property
     @_one_blas_thread
-    def _pose(self) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
-        """(world rotations or None, positions, parents) of `joint_names`, float64."""
+    def _positions(self) -> np.ndarray:
+        """(frames, joints, 3) float64 positions of `joint_names`."""
         if self.format == "bvh":
-            return None, bvh_joint_positions(self.bvh, self._units), point_parents(self.skeleton)
-        model = self._stored[1]
-        pose = forward(model, self.channels, self.motion)
-        return pose.rotations, pose.positions, np.asarray(model.parents)
+            return bvh_joint_positions(self.bvh, self._units)
+        return forward(self._stored[1], self.channels, self.motion, turns=False).positions
 
     @cached_property
+    @_one_blas_thread
     def _rotations(self) -> np.ndarray:
+        """(frames, joints, 3, 3) float64 world rotations of `joint_names`, on row vectors."""
         if self.format == "bvh":
             return file_pose(self.bvh, self._units)[0]
-        return self._pose[0]
+        return forward(self._stored[1], self.channels, self.motion).rotations
+
+    @cached_property
+    def _parents(self) -> np.ndarray:
+        return point_parents(self.skeleton) if self.format == "bvh" else np.asarray(self._stored[1].parents)
 
     def positions(self, dtype=np.float64) -> np.ndarray:
         """(frames, joints, 3) joint positions in cm (`joint_positions` of this clip; BVH:
         `bvh_joint_positions`, in the archive's units), as `dtype`."""
-        return self._pose[1].astype(dtype)
+        return self._positions.astype(dtype)
 
     def rotations(self, dtype=np.float64, world: bool = False) -> np.ndarray:
         """(frames, joints, 4) unit quaternions (w, x, y, z) of `joint_names`' rotations, relative
@@ -288,7 +291,7 @@ class Clip:
         the world with `world=True`. A quaternion q turns a column vector v to q v q*."""
         turns = self._rotations
         if not world:
-            parents = self._pose[2]
+            parents = self._parents
             turns = turns.copy()
             has = parents >= 0
             turns[:, has] = turns[:, has] @ np.swapaxes(self._rotations[:, parents[has]], -1, -2)
@@ -300,7 +303,7 @@ class Clip:
         translation, so that T @ (v, 1) places a point v cm from the joint."""
         out = np.zeros((self.frames, len(self.joint_names), 4, 4))
         out[..., :3, :3] = np.swapaxes(self._rotations, -1, -2)
-        out[..., :3, 3] = self._pose[1]
+        out[..., :3, 3] = self._positions
         out[..., 3, 3] = 1.0
         return out.astype(dtype, copy=False)
 
@@ -504,8 +507,9 @@ _KEYWORD_FIELDS = {"error_cm": "error", "max_error_cm": "max_error", "contact_er
 def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: str | os.PathLike, *,
              error: float = settings.DEFAULT_ERROR_CM, max_error: float | None = _DEFAULT,
              contact_error: float | None = None, lossless: bool = False, classes: str = "pooled",
-             asf: str | os.PathLike | None = None, units: str | None = None, skip_bad: bool = False, jobs: int | None = None,
-             dask: str | None = None, force: bool = False, progress: bool = True, **options) -> dict:
+             asf: str | os.PathLike | None = None, units: str | None = None, skip_bad: bool = False,
+             jobs: int | None = None, dask: str | None = None, force: bool = False, progress: bool = True,
+             **options) -> dict:
     """Compress the ASF/AMC and BVH files under `inputs` (folders or files) into the archive `output`, as
     `mcz compress` does (a worker process per core unless `jobs` says otherwise; progress bars on
     a terminal unless `progress=False`); return its summary: clips,
