@@ -206,9 +206,15 @@ class Clip:
         self._only("bvh", "bvh")
         motion = self._row["bvh"]["motion"]
         frame_time = re.search(r"Frame Time:[ \t]*([^ \t\r\n]+)", motion, re.IGNORECASE)
-        encoding = self._owner._encodings[self._row["skeleton"]]
-        return Bvh(list(self.skeleton), float(frame_time[1]), self.channels, self._owner._texts[self._row["skeleton"]]
-                   + motion, BvhStyle(**self._row["bvh"]["style"]), None, encoding, self.path)
+        encoding, hierarchy = self._hierarchy
+        return Bvh(list(self.skeleton), float(frame_time[1]), self.channels, hierarchy + motion,
+                   BvhStyle(**self._row["bvh"]["style"]), None, encoding, self.path)
+
+    @cached_property
+    def _hierarchy(self) -> tuple[str, str]:
+        """A BVH clip's (encoding, hierarchy text), kept: a closed archive's clip still has them."""
+        encoding = self._archive.meta["skeletons"][self._skeleton]["encoding"]
+        return encoding, self._archive.skeleton_text(self._skeleton).encode("latin-1").decode(encoding)
 
     @cached_property
     def channels(self) -> np.ndarray:
@@ -247,6 +253,7 @@ class Clip:
         archive = self._archive
         self._stored  # kept with the values: a closed archive's clip still poses them
         if self.format == "bvh":
+            self._hierarchy
             return bvh_file_values(archive, self.index)
         values = archive.decode(self.index).values
         archive.check_range(self.index, values)
@@ -384,7 +391,7 @@ class MocapArchive:
     manager (or call `close`)."""
 
     def __init__(self, path: str | os.PathLike):
-        self._archive: reader.Archive | None = reader.Archive(path)
+        self._archive: reader.Archive | None = reader.Archive(path, lazy_skeletons=True)
         self.path = self._archive.path
         self._index = {row["path"]: i for i, row in enumerate(self._archive.clips)}
         by_name: dict[str, list[int]] = {}
@@ -392,10 +399,6 @@ class MocapArchive:
             by_name.setdefault(PurePosixPath(stored).name, []).append(i)
         self._by_name = by_name
         self._clips: dict[int, Clip] = {}
-        # each skeleton's text (a BVH hierarchy's) and encoding, kept: a closed archive's BVH clips still have them
-        self._encodings = [entry.get("encoding", "latin-1") for entry in self._archive.meta["skeletons"]]
-        self._texts = [self._archive.skeleton_text(k).encode("latin-1").decode(encoding)
-                       for k, encoding in enumerate(self._encodings)]
 
     def _open_archive(self) -> reader.Archive:
         if self._archive is None:

@@ -78,14 +78,20 @@ def _built_once(build: Callable) -> Callable:
 class Archive:
     """An opened .mcz: metadata up front, clips decoded on demand (random access)."""
 
-    def __init__(self, path):
+    def __init__(self, path, lazy_skeletons: bool = False):
+        """`lazy_skeletons`: decode the skeletons stream when a skeleton is first asked for, not
+        here (the Python API's open: on the shared CMU set it took 1.3 s, of 1.4 s), so a damaged
+        one is an ArchiveError then; the commands read it here, before any file is written."""
         self.path = os.fspath(path)
         self._reader = ArchiveReader(path)
+        self._built: dict[tuple, tuple] = {}  # (method, its arguments) -> (value, ArchiveError): `_built_once`
+        self._building = threading.RLock()
         try:
             self.meta = self._json("meta")
             # every file a full decompress writes, each path checked to stay inside the output folder
             self.files = validate_meta(self.meta, self._reader.names(), self.path, self.format_version)
-            self._skeleton_texts = self._skeletons()
+            if not lazy_skeletons:
+                self._skeleton_texts()
             stored = {**self.format.settings_defaults, **self.meta["settings"]}  # with what older formats meant
             self.settings = Settings(**stored)
             coders = self.format.coders
@@ -104,8 +110,6 @@ class Archive:
             raise
         self._decode_class = old_streams.CLASS_DECODERS.get(self.format.class_stream, ClassBasis.decode)
         self._decode_clip = old_streams.CLIP_DECODERS.get(self.format.clip_stream, self._coded_clip)
-        self._built: dict[tuple, tuple] = {}  # (method, its arguments) -> (value, ArchiveError): `_built_once`
-        self._building = threading.RLock()
 
     def _json(self, name):
         try:
@@ -138,7 +142,8 @@ class Archive:
     def clips(self) -> list[dict]:
         return self.meta["clips"]
 
-    def _skeletons(self) -> list[str]:
+    @_built_once
+    def _skeleton_texts(self) -> list[str]:
         """The ASF texts, one per skeleton in meta, each as it was read (Latin-1: one character per byte)."""
         count = len(self.meta["skeletons"])
         if self.format.skeletons != 10:  # an old format's layout (formats 1 to 9)
@@ -157,7 +162,7 @@ class Archive:
         return texts
 
     def skeleton_text(self, index: int) -> str:
-        return self._skeleton_texts[index]
+        return self._skeleton_texts()[index]
 
     @property
     def priors(self) -> Priors | None:
