@@ -582,7 +582,6 @@ def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Ite
                force: bool = False, jobs: int = 1) -> dict:
     """Write the ASF and AMC (and BVH) files of the archive's clips under the folder `output`, as
     `mcz decompress` does (on one thread unless `jobs` says more; worker processes for a lossless
-    archive): all clips, or those
-    whose path matches one of the `clips` patterns (shell-style, e.g. "07/*"). Existing files
-    are replaced only with `force`."""
+    archive): all clips, or those whose path or file name matches one of the `clips` patterns
+    (shell-style, e.g. "07/*", "07_0*"). Existing files are replaced only with `force`."""
     return reader.decompress(archive, output, tuple(clips), force=force, jobs=jobs)
