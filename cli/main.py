@@ -392,7 +392,7 @@ def _parse_split(text):
 @click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False), callback=_named_output,
               help="Folder for the ASF/AMC and BVH files (not stdout: `-o -` is refused).")
-@click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path matches (glob; repeatable).")
+@click.option("--clip", "patterns", multiple=True, metavar="PATTERN", help="Only clips whose stored path or file name matches (glob, e.g. '09_0*'; repeatable).")
 @click.option("-f", "--force", is_flag=True, help="Overwrite existing files.")
 @jobs_option("decoding the clips (the files are written in the archive's order)",
              "Threads (worker processes for a lossless archive)")

@@ -278,6 +278,27 @@ def put_fixed(out, pos, x, decimals):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def _general_scale(a, p):
+    """(s, k): s = a * 10**k (one correctly rounded operation) with p digits before the point,
+    for 0 < a and p <= 15; k = 99 where no k within +-22 gives that (`put_general`)."""
+    k = p - 1 - ((math.frexp(a)[1] * 78913) >> 18)  # floor(log10(a)), or one less
+    s = 0.0
+    for _ in range(3):  # log10 can be one off next to a power of ten
+        if abs(k) > 22:
+            return s, 99
+        s = a * _P10[k] if k >= 0 else a / _P10[-k]
+        if s < _P10[p - 1]:
+            k += 1
+        elif s >= _P10[p]:
+            k -= 1
+        else:
+            break
+    if not _P10[p - 1] <= s < _P10[p]:
+        return s, 99
+    return s, k
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def put_general(out, pos, x, p, width):
     """'%.<p>g' % x at out[pos:] with at least `width` exponent digits; returns the end, or -1
     to leave it to Python.
@@ -298,19 +319,8 @@ def put_general(out, pos, x, p, width):
         return pos + 1
     if p > 15:
         return -1
-    k = p - 1 - ((math.frexp(a)[1] * 78913) >> 18)  # floor(log10(a)), or one less
-    s = 0.0
-    for _ in range(3):  # log10 can be one off next to a power of ten
-        if abs(k) > 22:
-            return -1
-        s = a * _P10[k] if k >= 0 else a / _P10[-k]
-        if s < _P10[p - 1]:
-            k += 1
-        elif s >= _P10[p]:
-            k -= 1
-        else:
-            break
-    if not _P10[p - 1] <= s < _P10[p]:
+    s, k = _general_scale(a, p)
+    if k > 22:
         return -1
     n = _round_half_even(s)
     if n < 0:
@@ -389,3 +399,46 @@ def with_numbers(text: bytes, hard: np.ndarray, number) -> bytes:
         done = at
     pieces.append(text[done:])
     return b"".join(pieces)
+
+
+@numba.njit(cache=True, nogil=True)
+def printed_values(values, fixed, p, out):
+    """out[i] = float('%.<p>f' % values[i]) ('f' if `fixed`) or float('%.<p>g' % ...), without the
+    text: the integer n the printed digits make, as `put_fixed` and `put_general` find it, times
+    or over an exact power of ten (one correctly rounded operation: what reading the text gives).
+    Returns how many were left (NaN in `out`) for Python to print and read."""
+    left = 0
+    for i in range(values.size):
+        x = values[i]
+        a = abs(x)
+        out[i] = np.nan
+        if a == 0.0 or not a < 1e300:
+            if a == 0.0:
+                out[i] = x
+            else:
+                left += 1
+            continue
+        if fixed:
+            if p > 22:
+                left += 1
+                continue
+            k = p
+            s = a * _P10[k]
+            if not s < _TWO52:
+                left += 1
+                continue
+        else:
+            if p > 15:
+                left += 1
+                continue
+            s, k = _general_scale(a, p)
+            if k > 22:
+                left += 1
+                continue
+        n = _round_half_even(s)
+        if n < 0:
+            left += 1
+            continue
+        v = n / _P10[k] if k >= 0 else n * _P10[-k]
+        out[i] = -v if math.copysign(1.0, x) < 0 else v
+    return left

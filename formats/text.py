@@ -278,3 +278,20 @@ def stated_frame_rate(lines) -> float | None:
             if match and MIN_FRAME_RATE <= float(match.group(1)) <= MAX_FRAME_RATE:
                 return float(match.group(1))
     return None
+
+
+def as_printed(values: np.ndarray, notation: str, digits: int) -> np.ndarray:
+    """`values` as a writer prints them with `%.<digits><notation>` ("g" or "f") and a reader reads
+    them back (`float('%.6g' % v)` of each), without the text: a decoded clip's values exactly as
+    its file gives them, made in compiled code (`numbers_compiled.printed_values`); the rare value
+    it leaves (an exact tie, beyond its ranges) is printed and read in Python."""
+    from mocapzip.formats.numbers_compiled import printed_values
+
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    out = np.empty_like(values)
+    digits = int(digits) if notation == "f" else max(int(digits), 1)  # %.0g is %.1g
+    if printed_values(values.ravel(), notation == "f", digits, out.ravel()):
+        spec = f"%.{int(digits)}{notation}"
+        for at in zip(*np.nonzero(np.isnan(out))):
+            out[at] = float(spec % values[at])
+    return out

@@ -15,25 +15,31 @@ Errors: `MocapFormatError` for an input file that cannot be read (it names the f
 
 from __future__ import annotations
 
+import difflib
+import functools
 import numbers
+import re
 import os
 from collections.abc import Iterable, Iterator
-from contextlib import nullcontext
+from contextlib import contextmanager, nullcontext
 from functools import cached_property
+from pathlib import Path, PurePosixPath
 from typing import NamedTuple
 
 import numpy as np
 
-from mocapzip.archive import reader, settings, writer
+from mocapzip.archive import reader, settings
 from mocapzip.archive.settings import SettingsError
-from mocapzip.defaults import ACL_SHELL_CM, MAX_TO_MEAN
-from mocapzip.formats.amc import Motion, parse_amc, read_amc, write_amc
+from mocapzip.defaults import ACL_SHELL_CM, BLAS_THREAD_VARIABLES, MAX_TO_MEAN
+from mocapzip.convert import amc_as_bvh, bvh_as_asf_amc
+from mocapzip.formats.amc import AmcStyle, Motion, format_amc, read_amc, write_amc
 from mocapzip.formats.asf import Skeleton, read_asf, write_asf
-from mocapzip.formats.bvh import Bvh, BvhJoint, parse_bvh, read_bvh, write_bvh
+from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, joint_columns, read_bvh, write_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError
-from mocapzip.motion.bvh_skeleton import file_positions, point_names
-from mocapzip.inputs.registry import ClipApi, input_formats
+from mocapzip.formats.text import as_printed, write_file_atomically
+from mocapzip.inputs.registry import ClipApi, bvh_file_values
+from mocapzip.motion.bvh_skeleton import bvh_skeleton, file_pose, file_positions, point_names, point_parents
 from mocapzip.motion.kinematics import Pose, forward
 from mocapzip.motion.metrics import ShellError, shell_errors
 from mocapzip.motion.skeleton import SkeletonModel
@@ -77,33 +83,111 @@ def bvh_point_names(bvh: Bvh) -> tuple[str, ...]:
     return point_names(bvh.joints)
 
 
-class Clip:
-    """One clip of an open archive. Its motion is decoded on first use (only this clip's
-    streams are read), then kept for as long as the clip is."""
+@functools.cache
+def _blas_controller():
+    """threadpoolctl's view of the BLAS libraries NumPy loaded, found once: finding them takes
+    5 ms, as long as decoding a short clip."""
+    from threadpoolctl import ThreadpoolController
 
-    def __init__(self, archive: MocapArchive, index: int):
+    return ThreadpoolController()
+
+
+def _one_blas_thread(function):
+    """`function` run on one BLAS thread, as the command line runs (`parallel.one_blas_thread`):
+    a clip's matrices are small, more threads only contend. An environment that sets a BLAS
+    thread count (OPENBLAS_NUM_THREADS...) wins."""
+
+    @functools.wraps(function)
+    def limited(*args, **kwargs):
+        if any(name in os.environ for name in BLAS_THREAD_VARIABLES):
+            return function(*args, **kwargs)
+        with _blas_controller().limit(limits=1):
+            return function(*args, **kwargs)
+
+    return limited
+
+
+def _quaternions(rotations: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions (w, x, y, z) of row-vector rotation matrices R (..., 3, 3): the
+    quaternion q with q v q* = v R for a column vector v (that is, of the column matrix R^T)."""
+    m = np.swapaxes(rotations, -1, -2)  # column convention
+    trace = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
+    q = np.empty((*m.shape[:-2], 4))
+    # the largest of w, x, y, z first: no division by a small number (Shepperd)
+    cases = np.argmax(np.stack([trace, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], axis=-1), axis=-1)
+    for case in range(4):
+        at = cases == case
+        if not at.any():
+            continue
+        a = m[at]
+        if case == 0:
+            s = np.sqrt(1.0 + a[:, 0, 0] + a[:, 1, 1] + a[:, 2, 2]) * 2
+            q[at] = np.stack([s / 4, (a[:, 2, 1] - a[:, 1, 2]) / s, (a[:, 0, 2] - a[:, 2, 0]) / s,
+                              (a[:, 1, 0] - a[:, 0, 1]) / s], axis=-1)
+        else:
+            i, j, k = case - 1, case % 3, (case + 1) % 3
+            s = np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, k, k]) * 2
+            parts = np.empty((len(a), 4))
+            parts[:, 0] = (a[:, k, j] - a[:, j, k]) / s
+            parts[:, 1 + i] = s / 4
+            parts[:, 1 + j] = (a[:, j, i] + a[:, i, j]) / s
+            parts[:, 1 + k] = (a[:, k, i] + a[:, i, k]) / s
+            q[at] = parts
+    return q
+
+
+class Clip:
+    """One clip of an open archive, or a range of its frames (`clip[a:b]`). Its motion is decoded
+    on first use (only this clip's streams are read), then kept for as long as the clip is, and
+    shared with its frame ranges."""
+
+    def __init__(self, archive: MocapArchive, index: int, start: int = 0, stop: int | None = None,
+                 whole: Clip | None = None):
         self._owner, self.index = archive, index
-        row = archive._archive.clips[index]
+        row = self._row = archive._archive.clips[index]
         self.path: str = row["path"]
-        self.frames: int = row["frames"]
+        self._start = start
+        self._stop = row["frames"] if stop is None else stop
+        self._whole = self if whole is None else whole  # the clip whose decoded values this range shares
+        self.frames: int = self._stop - self._start
         # the rate the clip's files stated, else compress's --fps (default 120): ASF/AMC have no field for it
         self.fps: float = row.get("fps", archive._archive.settings.fps)
         # "amc" or "bvh": the kind of file the clip came from, which `decompress` writes (`inputs.registry`)
         self._format = archive._archive.clip_format(index)
         self.format: str = self._format.name
         self._entry = archive._archive.meta["skeletons"][row["skeleton"]]  # its skeleton's entry in meta
+        self._units = self._entry.get("units")  # BVH lengths
         lossless = archive._archive.settings.lossless
         self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"],
                                   0.0 if lossless else row.get("max_vertex_error_cm"))
 
     def __repr__(self) -> str:
-        return f"<Clip {self.path!r}: {self.frames} frames at {self.fps:g} fps, mean error {self.error.mean_cm:.3f} cm>"
+        frames = "" if self._whole is self else f" [{self._start}:{self._stop}]"
+        return (f"<Clip {self.path!r}{frames}: {self.frames} frames at {self.fps:g} fps, "
+                f"mean error {self.error.mean_cm:.3f} cm>")
 
-    @cached_property
+    def __len__(self) -> int:
+        return self.frames
+
+    def __getitem__(self, frames: slice) -> Clip:
+        """The frames `frames` (a slice with step 1, as a list's) of this clip: a clip whose arrays
+        are that range, decoded once with the whole clip."""
+        if not isinstance(frames, slice) or frames.step not in (None, 1):
+            raise TypeError(f"a clip is sliced by frames, clip[a:b], not by {frames!r}")
+        start, stop, _ = frames.indices(self.frames)
+        return Clip(self._owner, self.index, self._start + start, self._start + max(start, stop), self._whole)
+
+    @property
+    def duration(self) -> float:
+        """Seconds: `frames` / `fps`."""
+        return self.frames / self.fps
+
+    @property
     def skeleton(self) -> Skeleton | list[BvhJoint]:
-        """The clip's ASF skeleton, parsed (the file itself, byte for byte: `asf_text`); for a BVH
-        clip, its joints (`bvh.joints`)."""
-        return self._api.skeleton(self, self._entry)
+        """The clip's ASF skeleton, parsed once per archive (the file itself, byte for byte:
+        `asf_text`); for a BVH clip, its joints."""
+        skeleton = self._stored[0]
+        return skeleton.joints if self.format == "bvh" else skeleton
 
     @cached_property
     def asf_text(self) -> str:
@@ -116,35 +200,149 @@ class Clip:
         """The clip as the AMC file `decompress` writes, read back: bones, counts, values (read-only);
         a BVH clip's is `bvh`."""
         self._only("amc", "motion")
-        motion = parse_amc(self._archive.file_bytes("motion", self.index), self.path, self.skeleton)
-        motion.values.flags.writeable = False  # positions() are computed from them
-        return motion
+        row = self._row
+        first = row["first_frame"] + self._start
+        return Motion(row["bones"], row["counts"], self.channels, np.arange(first, first + self.frames),
+                      row["header"], row["path"], AmcStyle(**row["style"]))
 
     @cached_property
     def bvh(self) -> Bvh:
-        """A BVH clip as the file `decompress` writes, read back (values read-only)."""
+        """A BVH clip as the file `decompress` writes (values read-only), made without its text: its
+        header (hierarchy and MOTION lines) and `style` as stored, `format_bvh` of it that file."""
         self._only("bvh", "bvh")
-        try:
-            return parse_bvh(self._archive.file_bytes("motion", self.index), self.path)
-        except MocapFormatError as exc:  # the text the archive makes: a damaged archive, not a bad input
-            raise ArchiveError(f"clip {self.path}: damaged ({exc})", self._archive.path) from exc
+        motion = self._row["bvh"]["motion"]
+        frame_time = re.search(r"Frame Time:[ \t]*([^ \t\r\n]+)", motion, re.IGNORECASE)
+        encoding, hierarchy = self._hierarchy
+        return Bvh(list(self.skeleton), float(frame_time[1]), self.channels, hierarchy + motion,
+                   BvhStyle(**self._row["bvh"]["style"]), None, encoding, self.path)
 
-    @property
+    @cached_property
+    def _hierarchy(self) -> tuple[str, str]:
+        """A BVH clip's (encoding, hierarchy text), kept: a closed archive's clip still has them."""
+        encoding = self._archive.meta["skeletons"][self._skeleton]["encoding"]
+        return encoding, self._archive.skeleton_text(self._skeleton).encode("latin-1").decode(encoding)
+
+    @cached_property
     def channels(self) -> np.ndarray:
-        """(frames, values) float64, read-only: the AMC values, bone after bone in `motion.bones`
-        order; a BVH clip's frame values, in the order of its joints' CHANNELS."""
-        return getattr(self, self._api.file).values
+        """(frames, values) float64, read-only: the values of the file `decompress` writes (made
+        without its text: each as printed and read back). AMC: bone after bone in `motion.bones`
+        order; BVH: in the order of its joints' CHANNELS. Named in `channel_labels`."""
+        raw = self._whole._decoded[self._start : self._stop]
+        row = self._row
+        if self.format == "bvh":
+            number = row["bvh"]["style"].get("number", "g6")
+            values = raw.copy() if number == "repr" else as_printed(raw, number[0], int(number[1:]))
+        else:
+            style = AmcStyle(**row["style"])
+            values = as_printed(raw, style.notation, style.digits)
+        values.flags.writeable = False  # positions() are computed from them
+        return values
+
+    def values(self, dtype=np.float64) -> np.ndarray:
+        """`channels` as an array of `dtype` (float32 halves the memory)."""
+        return self.channels.astype(dtype, copy=False)
+
+    @cached_property
+    def channel_labels(self) -> tuple[str, ...]:
+        """What each column of `channels` holds, as "joint.dof", the dof as the file names it: AMC
+        "lfemur.rx", "root.tx"; BVH "Hips.Xposition", "Hips.Zrotation"."""
+        if self.format == "bvh":
+            return tuple(f"{self.skeleton[j].name}.{name}" for j, name in joint_columns(self.skeleton))
+        row, model = self._row, self._stored[1]
+        return tuple(f"{bone}.{''.join(model.channels[model.index[bone]][k])}"
+                     for bone, count in zip(row["bones"], row["counts"]) for k in range(count))
+
+    @cached_property
+    @_one_blas_thread
+    def _decoded(self) -> np.ndarray:
+        """The whole clip's values in its file's channels, as decoded, before they are printed."""
+        self._api  # a format the API does not read (`InputFormat.api`) is refused here, by name
+        archive = self._archive
+        self._stored  # kept with the values: a closed archive's clip still poses them
+        if self.format == "bvh":
+            self._hierarchy
+            return bvh_file_values(archive, self.index)
+        values = archive.decode(self.index).values
+        archive.check_range(self.index, values)
+        return values
 
     @cached_property
     def joint_names(self) -> tuple[str, ...]:
         """The joints of `positions()`: the root, then the end of every bone (BVH: every joint and
         End Site, in file order: `bvh_point_names`)."""
-        return self._api.joint_names(self)
+        if self.format == "bvh":
+            return point_names(self.skeleton)
+        return self._stored[1].names
 
-    def positions(self) -> np.ndarray:
-        """(frames, joints, 3) float64 joint positions in cm (`joint_positions` of this clip;
-        BVH: `bvh_joint_positions`, in the archive's units)."""
-        return self._api.positions(self, self._entry)
+    @cached_property
+    @_one_blas_thread
+    def _positions(self) -> np.ndarray:
+        """(frames, joints, 3) float64 positions of `joint_names`."""
+        if self.format == "bvh":
+            return bvh_joint_positions(self.bvh, self._units)
+        return forward(self._stored[1], self.channels, self.motion, turns=False).positions
+
+    @cached_property
+    @_one_blas_thread
+    def _rotations(self) -> np.ndarray:
+        """(frames, joints, 3, 3) float64 world rotations of `joint_names`, on row vectors."""
+        if self.format == "bvh":
+            return file_pose(self.bvh, self._units)[0]
+        return forward(self._stored[1], self.channels, self.motion).rotations
+
+    @cached_property
+    def _parents(self) -> np.ndarray:
+        return point_parents(self.skeleton) if self.format == "bvh" else np.asarray(self._stored[1].parents)
+
+    def positions(self, dtype=np.float64) -> np.ndarray:
+        """(frames, joints, 3) joint positions in cm (`joint_positions` of this clip; BVH:
+        `bvh_joint_positions`, in the archive's units), as `dtype`."""
+        return self._positions.astype(dtype)
+
+    def rotations(self, dtype=np.float64, world: bool = False) -> np.ndarray:
+        """(frames, joints, 4) unit quaternions (w, x, y, z) of `joint_names`' rotations, relative
+        to the skeleton's rest pose: each joint's in its parent's frame (its local rotation), or in
+        the world with `world=True`. A quaternion q turns a column vector v to q v q*."""
+        turns = self._rotations
+        if not world:
+            parents = self._parents
+            turns = turns.copy()
+            has = parents >= 0
+            turns[:, has] = turns[:, has] @ np.swapaxes(self._rotations[:, parents[has]], -1, -2)
+        return _quaternions(turns).astype(dtype)
+
+    def transforms(self, dtype=np.float64) -> np.ndarray:
+        """(frames, joints, 4, 4) world transforms of `joint_names`: the world rotation (as
+        `rotations(world=True)`, a matrix on column vectors) and the joint's position in cm as
+        translation, so that T @ (v, 1) places a point v cm from the joint."""
+        out = np.zeros((self.frames, len(self.joint_names), 4, 4))
+        out[..., :3, :3] = np.swapaxes(self._rotations, -1, -2)
+        out[..., :3, 3] = self._positions
+        out[..., 3, 3] = 1.0
+        return out.astype(dtype, copy=False)
+
+    def save(self, path: str | os.PathLike, *, force: bool = False) -> list[str]:
+        """Write the clip to `path` in the format its suffix names: its own (the file `decompress`
+        writes, an AMC with its ASF beside it as <stem>.asf) or the other, converted as `mcz convert`
+        does (AMC to BVH, BVH to AMC and ASF). Returns the files written; FileExistsError unless `force`."""
+        target = Path(path)
+        suffix = target.suffix.lower()
+        if suffix not in (".amc", ".bvh"):
+            raise ValueError(f"{target}: save writes .amc or .bvh files, not {target.suffix or 'no suffix'}")
+        names = [target, target.with_suffix(".asf")] if suffix == ".amc" else [target]
+        existing = [p for p in names if os.path.lexists(p)]
+        if existing and not force:
+            raise FileExistsError(None, "already exists", os.fspath(existing[0]))
+        if suffix == ".bvh":
+            files = [format_bvh(self.bvh).encode(self.bvh.encoding)] if self.format == "bvh" else \
+                amc_as_bvh(self.skeleton, self.motion, self.fps, os.fspath(target), self.path)
+        elif self.format == "amc":
+            files = [format_amc(self.motion).encode(self.motion.style.encoding), self.asf_text.encode("latin-1")]
+        else:
+            files = bvh_as_asf_amc(self.bvh, self._units, [os.fspath(n) for n in names], self.path)
+        for name, data in zip(names, files):
+            write_file_atomically(name, data)
+        return [os.fspath(n) for n in names]
 
     def shell_error(self, source: str | os.PathLike | Motion | Bvh, shell_cm: float = ACL_SHELL_CM) -> ShellError:
         """ACL's error of this clip against its `source` (docs/acl.md): per frame and bone, the
@@ -167,8 +365,11 @@ class Clip:
     def _posed(self, clip_file: Motion | Bvh) -> tuple[SkeletonModel, Pose]:
         """The model of this clip's skeleton and `clip_file` posed on it by forward kinematics (a
         BVH file's lengths in the archive's units)."""
-        api = next(f.api for f in input_formats() if f.api is not None and isinstance(clip_file, f.api.file_type))
-        model, motion = api.posed(self, clip_file, self._entry)
+        if isinstance(clip_file, Bvh):
+            skeleton = bvh_skeleton(clip_file.joints, self._units, clip_file.path)
+            model, motion = skeleton.model, skeleton.motion(clip_file, lossless=False)
+        else:
+            model, motion = self._stored[1], clip_file
         return model, forward(model, motion.values, motion)
 
     def _only(self, kind: str, what: str) -> None:
@@ -188,17 +389,29 @@ class Clip:
 
     @property
     def _skeleton(self) -> int:
-        return self._archive.clips[self.index]["skeleton"]
+        return self._row["skeleton"]
+
+    @cached_property
+    def _stored(self) -> tuple:
+        """(skeleton, model) of the clip's skeleton, read once per archive (`Archive.stored_skeleton`)."""
+        return self._archive.stored_skeleton(self._skeleton)
 
 
 class MocapArchive:
-    """An open .mcz archive: its clips in archive order, by index or by path, each decoded once,
-    when first asked for. Use as a context manager (or call `close`)."""
+    """An open .mcz archive: a mapping of its clips' stored paths to clips, in archive order
+    (`keys`, `values`, `items`, `get`, `in`, `len`; iterating gives the clips, as `values()`). A
+    clip is found by its path, by its file's name where no other clip has it, or by position;
+    `glob` finds clips by pattern. Each is decoded once, when first asked for. Use as a context
+    manager (or call `close`)."""
 
     def __init__(self, path: str | os.PathLike):
-        self._archive: reader.Archive | None = reader.Archive(path)
+        self._archive: reader.Archive | None = reader.Archive(path, lazy_skeletons=True)
         self.path = self._archive.path
         self._index = {row["path"]: i for i, row in enumerate(self._archive.clips)}
+        by_name: dict[str, list[int]] = {}
+        for stored, i in self._index.items():
+            by_name.setdefault(PurePosixPath(stored).name, []).append(i)
+        self._by_name = by_name
         self._clips: dict[int, Clip] = {}
 
     def _open_archive(self) -> reader.Archive:
@@ -210,6 +423,30 @@ class MocapArchive:
     def paths(self) -> list[str]:
         """Every clip's path (its AMC file's, relative to the compressed folder), in archive order."""
         return list(self._index)
+
+    def keys(self) -> list[str]:
+        """The clips' stored paths, in archive order (`paths`)."""
+        return self.paths
+
+    def values(self) -> list[Clip]:
+        """The clips, in archive order (none decoded yet)."""
+        return [self[i] for i in range(len(self))]
+
+    def items(self) -> list[tuple[str, Clip]]:
+        """(path, clip) of every clip, in archive order."""
+        return list(zip(self.paths, self.values()))
+
+    def get(self, key: str, default=None):
+        """`archive[key]`, or `default` where no clip matches."""
+        try:
+            return self[key]
+        except KeyError:
+            return default
+
+    def glob(self, pattern: str) -> list[Clip]:
+        """The clips whose stored path, or file name, matches the shell-style `pattern`
+        ("09_*", "09/*", "*walk*"), in archive order (as `mcz decompress --clip`)."""
+        return [self[i] for i, stored in enumerate(self._index) if reader.path_matches(stored, pattern)]
 
     @property
     def settings(self) -> settings.Settings:
@@ -223,14 +460,15 @@ class MocapArchive:
         return (self[i] for i in range(len(self)))
 
     def __contains__(self, path: object) -> bool:
-        return path in self._index
+        return isinstance(path, str) and (path in self._index or len(self._by_name.get(path, ())) == 1)
 
     def __getitem__(self, key: str | int) -> Clip:
-        """The clip with this path, or at this position (negative counts from the end)."""
+        """The clip with this path (or file name, where only one clip has it), or at this position
+        (negative counts from the end)."""
         if isinstance(key, str):
-            if key not in self._index:
-                raise KeyError(f"no clip {key!r} in {self.path}")
-            index = self._index[key]
+            index = self._index.get(key)
+            if index is None:
+                index = self._by_name_or_miss(key)
         elif isinstance(key, numbers.Integral) and not isinstance(key, bool):
             index = range(len(self))[key]
         else:
@@ -239,6 +477,17 @@ class MocapArchive:
         if index not in self._clips:
             self._clips[index] = Clip(self, index)
         return self._clips[index]
+
+    def _by_name_or_miss(self, key: str) -> int:
+        named = self._by_name.get(key, [])
+        if len(named) == 1:
+            return named[0]
+        if named:
+            raise KeyError(f"{len(named)} clips are called {key!r} in {self.path}: give its path "
+                           f"({', '.join(self.paths[i] for i in named[:3])}{', ...' if len(named) > 3 else ''})")
+        near = difflib.get_close_matches(key, [*self._index, *self._by_name], n=1)
+        hint = f"; did you mean {near[0]!r}?" if near else ""
+        raise KeyError(f"no clip {key!r} in {self.path}{hint}")
 
     def verify(self, jobs: int = 1) -> None:
         """Decode every clip and check every checksum, as `mcz test` (ArchiveError if one fails)."""
@@ -275,11 +524,12 @@ _KEYWORD_FIELDS = {"error_cm": "error", "max_error_cm": "max_error", "contact_er
 def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: str | os.PathLike, *,
              error: float = settings.DEFAULT_ERROR_CM, max_error: float | None = _DEFAULT,
              contact_error: float | None = None, max_vertex_error: float | None = None, lossless: bool = False,
-             classes: str = "pooled",
-             asf: str | os.PathLike | None = None, units: str | None = None, skip_bad: bool = False, jobs: int = 1,
-             dask: str | None = None, force: bool = False, **options) -> dict:
+             classes: str = "pooled", asf: str | os.PathLike | None = None, units: str | None = None,
+             skip_bad: bool = False, jobs: int | None = None, dask: str | None = None, force: bool = False,
+             progress: bool = True, **options) -> dict:
     """Compress the ASF/AMC and BVH files under `inputs` (folders or files) into the archive `output`, as
-    `mcz compress` does (one worker process unless `jobs` says more); return its summary: clips,
+    `mcz compress` does (a worker process per core unless `jobs` says otherwise; progress bars on
+    a terminal unless `progress=False`); return its summary: clips,
     frames, bytes, achieved errors.
 
     `error`: each clip's mean joint error bound in cm. `max_error`: the bound on every joint of
@@ -325,16 +575,25 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
     if dask is not None:  # Dask's module only when asked for: it is an optional extra
         from mocapzip.cluster import on_cluster
-    with nullcontext() if dask is None else on_cluster(dask) as cluster:
+    jobs = (os.cpu_count() or 1) if jobs is None else jobs  # every core, as the command line
+    from mocapzip.archive import writer  # the encoder's modules only when compressing: open() is faster without
+
+    with nullcontext() if dask is None else on_cluster(dask) as cluster, _bars(progress):
         return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force,
                                jobs=jobs if cluster is None else cluster.workers, skip_bad=skip_bad, units=units)
+
+
+def _bars(shown: bool):
+    """Progress bars as the command line's (`mocapzip.progress`: on a terminal only), or none."""
+    from mocapzip import progress
+
+    return nullcontext() if shown else progress.quieted()
 
 
 def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Iterable[str] = (), *,
                force: bool = False, jobs: int = 1) -> dict:
     """Write the ASF and AMC (and BVH) files of the archive's clips under the folder `output`, as
     `mcz decompress` does (on one thread unless `jobs` says more; worker processes for a lossless
-    archive): all clips, or those
-    whose path matches one of the `clips` patterns (shell-style, e.g. "07/*"). Existing files
-    are replaced only with `force`."""
+    archive): all clips, or those whose path or file name matches one of the `clips` patterns
+    (shell-style, e.g. "07/*", "07_0*"). Existing files are replaced only with `force`."""
     return reader.decompress(archive, output, tuple(clips), force=force, jobs=jobs)

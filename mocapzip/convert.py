@@ -276,31 +276,43 @@ def _converted(source, reader: ClipReader, units: str | None) -> list[bytes]:
     with the source clip's joint positions."""
     targets = _targets(source)
     if source.format is BVH:
-        bvh = read_bvh(source.motion)
-        skeleton, motion = bvh_to_amc(bvh, units)
-        name_bytes = motion.n_frames * sum(len(name.encode("utf-8")) + 1 for name in motion.bones)
-        if name_bytes > MAX_AMC_BYTES:  # refused before the text is made: names are repeated in every frame
-            raise MocapFormatError(f"cannot be converted: its joint names alone would take {name_bytes:,} bytes of "
-                                   f"its AMC file, which may have {MAX_AMC_BYTES:,}", source.motion)
-        asf = format_asf(skeleton).encode("utf-8")
-        positions = _asf_joints_in_bvh(bvh, units)
-        for digits in AMC_DIGITS:
-            written = replace(motion, style=AmcStyle(digits=digits))
-            files = [format_amc(written).encode("utf-8"), asf]
-            moved = _asf_amc_read_back(files, targets, skeleton, written, positions, source.motion)
-            if moved <= READ_BACK_CM:
-                return files
-        raise _moved(moved, source.motion)
+        return bvh_as_asf_amc(read_bvh(source.motion), units, targets, source.motion)
     read = reader.motion(source)
-    bvh = amc_to_bvh(read.skeleton, read.motion, clip_frame_rate(read.stated_fps, DEFAULT_FPS))
-    positions = _asf_positions(read.skeleton, read.motion)
+    return amc_as_bvh(read.skeleton, read.motion, clip_frame_rate(read.stated_fps, DEFAULT_FPS), targets[0],
+                      source.motion)
+
+
+def bvh_as_asf_amc(bvh: Bvh, units: str | None, targets: list[str], source) -> list[bytes]:
+    """The bytes of the AMC and ASF files (`targets`: their names) `bvh` becomes, checked to read back
+    with its joint positions; MocapFormatError naming `source` if they cannot."""
+    skeleton, motion = bvh_to_amc(bvh, units)
+    name_bytes = motion.n_frames * sum(len(name.encode("utf-8")) + 1 for name in motion.bones)
+    if name_bytes > MAX_AMC_BYTES:  # refused before the text is made: names are repeated in every frame
+        raise MocapFormatError(f"cannot be converted: its joint names alone would take {name_bytes:,} bytes of "
+                               f"its AMC file, which may have {MAX_AMC_BYTES:,}", source)
+    asf = format_asf(skeleton).encode("utf-8")
+    positions = _asf_joints_in_bvh(bvh, units)
+    for digits in AMC_DIGITS:
+        written = replace(motion, style=AmcStyle(digits=digits))
+        files = [format_amc(written).encode("utf-8"), asf]
+        moved = _asf_amc_read_back(files, targets, skeleton, written, positions, source)
+        if moved <= READ_BACK_CM:
+            return files
+    raise _moved(moved, source)
+
+
+def amc_as_bvh(skeleton: Skeleton, motion: Motion, fps: float, target: str, source) -> list[bytes]:
+    """The bytes of the BVH file (named `target`) an AMC clip becomes, checked to read back with its
+    joint positions; MocapFormatError naming `source` if it cannot."""
+    bvh = amc_to_bvh(skeleton, motion, fps)
+    positions = _asf_positions(skeleton, motion)
     for number in BVH_NUMBERS:
         written = replace(bvh, style=replace(bvh.style, number=number))
         files = [format_bvh(written).encode(written.encoding)]
-        moved = _bvh_read_back(files[0], targets[0], written, positions, source.motion)
+        moved = _bvh_read_back(files[0], target, written, positions, source)
         if moved <= READ_BACK_CM:
             return files
-    raise _moved(moved, source.motion)
+    raise _moved(moved, source)
 
 
 def _asf_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:

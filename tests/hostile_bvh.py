@@ -256,6 +256,27 @@ REFUSED = [
             _SPINE_LINE),
     Refused("name_with_a_next_line_character", _base_with("JOINT Spine", "JOINT Sp\x85ine"), "expected '{', got 'ine'",
             _SPINE_LINE),  # U+0085 splits words as str.split() does
+    # the sixth hostile pass: numbers no BVH writer writes, text in other encodings, a hierarchy cut
+    # or closed twice
+    Refused("value_in_fortran_notation", _first_value("1d3"), "not a number: '1d3'", _MOTION + 3),
+    Refused("value_nan_with_a_payload", _first_value("nan(0x1)"), "not a number: 'nan(0x1)'", _MOTION + 3),
+    Refused("value_minus_nan", _first_value("-nan"), "value is not finite: '-nan'", _MOTION + 3),
+    Refused("last_value_a_lone_minus", bvh_text(BASE).rstrip("\n").rsplit(" ", 1)[0] + " -\n", "not a number: '-'",
+            _MOTION + 5),
+    Refused("frame_time_inf", _base_with("Frame Time: 0.033333", "Frame Time: inf"), "Frame Time is not finite",
+            _MOTION + 2),
+    Refused("frame_time_minus_zero", _base_with("Frame Time: 0.033333", "Frame Time: -0"), "Frame Time must be from",
+            _MOTION + 2),
+    Refused("frame_time_a_hex_float", _base_with("Frame Time: 0.033333", "Frame Time: 0x1p-5"),
+            "not a number: '0x1p-5'", _MOTION + 2),
+    Refused("end_site_offset_1e30", _base_with("End Site\n      {\n        OFFSET 0 20 0",
+                                               "End Site\n      {\n        OFFSET 0 1e30 0"),
+            "End Site OFFSET 1e30 is out of range", 16),
+    Refused("utf16_without_a_byte_order_mark", bvh_text(BASE).encode("utf-16-le"), "UTF-16 text, not a text BVH file", 1),
+    Refused("root_without_a_name", _base_with("ROOT Hips", "ROOT"), "a joint needs a name", 3),
+    Refused("a_brace_closed_twice", _base_with("}\nMOTION", "}\n}\nMOTION"), "expected 'ROOT', got '}'", _MOTION),
+    Refused("cut_in_the_hierarchy", bvh_text(BASE)[:bvh_text(BASE).index("JOINT Spine") + 20],
+            "no MOTION line: not a BVH file"),
     Refused("offset_of_900_digits", _base_with("OFFSET 0 20 0", "OFFSET 0 " + "9" * 900 + " 0"),
             f"OFFSET {'9' * 40}... is out of range", 8),
 ]
@@ -294,6 +315,14 @@ ACCEPTED = {
     "frames_and_frame_time_without_blanks": _base_with("Frames: 3\nFrame Time: 0.033333",
                                                        "Frames:3\nFrame Time:0.033333"),
     "frame_time_of_a_second": _base_with("Frame Time: 0.033333", "Frame Time: 1"),
+    # the sixth hostile pass
+    "brace_on_the_joint_line": _base_with("JOINT Spine\n  {", "JOINT Spine {"),
+    "last_frame_without_a_line_end": bvh_text(BASE).rstrip("\n"),
+    "root_channels_interleaved": _base_with("Xposition Yposition Zposition Zrotation Xrotation Yrotation",
+                                            "Xposition Zrotation Yposition Xrotation Zposition Yrotation"),
+    "offsets_of_1e-200": bvh_text(BASE).replace("OFFSET 0 20 0", "OFFSET 0 1e-200 0"),
+    "names_of_one_letter_composed_and_decomposed": Shape(person(Joint("\u00e9a"), Joint("e\u0301a"))),
+    "names_of_a_slash_and_its_escape": Shape(person(Joint("a/b"), Joint("a%2Fb"))),
 }
 
 

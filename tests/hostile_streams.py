@@ -13,6 +13,8 @@ decodes it.
 
 from __future__ import annotations
 
+import json
+
 import math
 import struct
 from collections.abc import Callable
@@ -354,6 +356,21 @@ def _tensor_cases() -> list[Case]:
         Case("tensor_modes_of_no_group", "tensor", _set("settings.modes", "(a+)+$"), "meta: settings.modes"),
         Case("tensor_class_of_no_component", "tensor", _set("classes.0.components", 0), "meta: classes[0].components"),
         Case("tensor_clip_streams_of_two_clips_swapped", "tensor", _swapped("clip/00000", "clip/00002"), "clip/00000"),
+        # the sixth hostile pass
+        Case("tensor_at_one_level_past_its_mode", "tensor", _set("clips.0.tensor_at", [2, 0]),
+             "meta: clips[0].tensor_at: not a place in its class's grid"),
+        Case("tensor_class_of_components_true", "tensor", _set("classes.0.components", True),
+             "meta: classes[0].components: must be integer"),
+        Case("tensor_class_of_2_40_frames", "tensor", _set("classes.0.frames", 2**40), "meta: classes[0].frames"),
+        Case("tensor_class_of_a_thousand_levels_more", "tensor",
+             _levels(lambda levels: levels[0].extend(f"l{i}" for i in range(1000))), "meta: classes[0].levels"),
+        Case("tensor_class_copied_as_a_class_of_no_clip", "tensor",
+             lambda meta, streams: meta["classes"].append(json.loads(json.dumps(meta["classes"][0]))),
+             "meta: classes[1]: no clip or segment is in this class"),
+        Case("tensor_mode_of_no_group_of_the_pattern", "tensor", lambda meta, streams: meta["classes"][0]["modes"]
+             .__setitem__(0, "m" * 10_000), "meta: classes[0].modes"),
+        Case("tensor_stream_named_up_two_folders", "tensor", _copied("warp/00000", "../../warp"),
+             "../../warp: a stream that no part of meta claims"),
     ]
     return c
 

@@ -16,6 +16,7 @@ from click.testing import CliRunner
 
 import mocapzip
 from mocapzip.cli.main import main
+from mocapzip.formats.amc import parse_amc
 from mocapzip.formats.mcz import ArchiveReader
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "api.md"
@@ -48,12 +49,12 @@ def test_reading_one_clip_reads_only_its_own_streams(monkeypatch):
     original = ArchiveReader.read
     monkeypatch.setattr(ArchiveReader, "read", lambda self, name: read.append(name) or original(self, name))
     with mocapzip.open(GOLDEN_LOSSY) as archive:
-        assert set(read) == {"meta", "skeletons"}
+        assert set(read) == {"meta"}  # the skeletons too are read when first needed
         read.clear()
         clip = archive["64_01.amc"]
         assert read == []  # nothing is decoded until asked for
         clip.channels
-        assert set(read) == {"clip/00001", "patch/00001", "class/0000", "priors"}
+        assert set(read) == {"skeletons", "clip/00001", "patch/00001", "class/0000", "priors"}
         read.clear()
         clip.positions(), archive["64_01.amc"].channels, list(archive)[1].positions()
         assert read == []  # decoded once, then kept
@@ -215,3 +216,70 @@ def test_an_explicit_blas_thread_count_in_the_environment_wins(monkeypatch):
         monkeypatch.delenv(name, raising=False)
     with threadpool_limits(limits=2, user_api="blas"):
         assert set(seen()) == {1}
+
+
+def test_clips_read_without_text_are_the_values_of_the_files_decompress_writes():
+    for name in ("lossy_v7.mcz", "lossless_v1.mcz"):
+        with mocapzip.open(GOLDEN_LOSSY.with_name(name)) as archive:
+            for clip in archive:
+                written = parse_amc(archive._archive.file_bytes("motion", clip.index), clip.path)
+                assert np.array_equal(clip.channels, written.values) and clip.channels.dtype == np.float64
+                assert len(clip.channel_labels) == clip.channels.shape[1]
+
+
+def test_as_printed_is_printing_and_reading_back():
+    from mocapzip.formats.text import as_printed
+
+    values = np.random.default_rng(0).normal(0, 50, 20000) * 10.0 ** np.random.default_rng(1).integers(-18, 6, 20000)
+    values = np.concatenate([values, [0.0, -0.0, 0.5, 2.5, 999999.5, 9.9999995, 1e-30]])
+    for notation, digits in (("g", 6), ("g", 15), ("f", 6), ("f", 2)):
+        expected = np.array([float(f"%.{digits}{notation}" % v) for v in values])
+        assert np.array_equal(as_printed(values, notation, digits).view(np.int64), expected.view(np.int64))
+
+
+def test_the_archive_finds_clips_by_file_name_and_pattern(shared_data, tmp_path):
+    for folder in ("a", "b"):
+        (tmp_path / "in" / folder).mkdir(parents=True)
+        for name in ("09.asf", "09_01.amc"):
+            (tmp_path / "in" / folder / name).symlink_to(shared_data / "cmu" / "09" / name)
+    (tmp_path / "in" / "b" / "09_02.amc").symlink_to(shared_data / "cmu" / "09" / "09_02.amc")
+    mocapzip.compress(tmp_path / "in", tmp_path / "t.mcz", jobs=1, progress=False)
+    with mocapzip.open(tmp_path / "t.mcz") as archive:
+        assert archive.keys() == ["a/09_01.amc", "b/09_01.amc", "b/09_02.amc"]
+        assert archive["09_02.amc"] is archive["b/09_02.amc"] and "09_02.amc" in archive
+        assert "09_01.amc" not in archive
+        with pytest.raises(KeyError, match=r"2 clips are called '09_01.amc' .*: give its path \(a/09_01.amc, b/09_01"):
+            archive["09_01.amc"]
+        with pytest.raises(KeyError, match="did you mean 'b/09_02.amc'"):
+            archive["b/09_03.amc"]
+        assert [clip.path for clip in archive.glob("09_0[2-9]*")] == ["b/09_02.amc"]
+        assert [path for path, _ in archive.items()] == [clip.path for clip in archive.values()]
+        clip = archive["09_02.amc"]
+        part = clip[-10:]
+        assert part.frames == 10 and np.array_equal(part.channels, clip.channels[-10:])
+        assert part.motion.frame_numbers[0] == clip.motion.frame_numbers[-10]
+        assert clip[5:2].frames == 0 and abs(clip.duration - clip.frames / clip.fps) < 1e-12
+        with pytest.raises(TypeError, match="sliced by frames"):
+            clip[::2]
+        q = clip.rotations(np.float32)
+        assert q.dtype == np.float32 and np.allclose(np.linalg.norm(q, axis=-1), 1, atol=1e-6)
+        world = clip.transforms()
+        assert np.allclose(world[..., :3, 3], clip.positions()) and np.allclose(world[..., 3, :], [0, 0, 0, 1])
+    result = CliRunner().invoke(main, ["decompress", str(tmp_path / "t.mcz"), "-o", str(tmp_path / "out"),
+                                       "--clip", "09_02*", "-q"])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "out").rglob("*.amc")) == ["09_02.amc"]
+
+
+def test_save_writes_its_own_format_byte_for_byte_and_converts(tmp_path):
+    with mocapzip.open(GOLDEN_LOSSY) as archive:
+        clip = archive[0]
+        assert clip.save(tmp_path / "x.amc") == [str(tmp_path / "x.amc"), str(tmp_path / "x.asf")]
+        assert (tmp_path / "x.amc").read_bytes() == archive._archive.file_bytes("motion", 0)
+        clip.save(tmp_path / "x.bvh")
+        back = mocapzip.read_bvh(tmp_path / "x.bvh")
+        assert back.values.shape[0] == clip.frames
+        with pytest.raises(FileExistsError):
+            clip.save(tmp_path / "x.bvh")
+        with pytest.raises(ValueError, match="writes .amc or .bvh"):
+            clip.save(tmp_path / "x.txt")

@@ -162,6 +162,15 @@ HEADER_CASES = {
     "fill value": (replace_payload(fillvalue=7), "payload has a fill value"),
     "dataset attribute": (set_attr("payload", "note", 1), "payload has attributes"),
     "no storage": (unwritten_payload, "payload has 1124 bytes, not stored within the file"),
+    # the sixth hostile pass
+    "a terabyte declared": (lambda f, tmp_path: (f.__delitem__("payload"),
+                                                 f.create_dataset("payload", shape=(1 << 40,), dtype=np.uint8)),
+                            "payload has 1099511627776 bytes, not stored within the file"),
+    "scalar": (replace_payload(np.uint8(7)), "payload has shape (), not 1-D"),
+    "dangling soft link": (lambda f, tmp_path: (f.__delitem__("payload"), f.__setitem__("payload", h5py.SoftLink("/no"))),
+                           "payload is not a dataset but a link (SoftLink)"),
+    "format_version of one element": (set_attr("/", "format_version", np.array([12], np.uint32)),
+                                      "invalid format_version array([12], dtype=uint32)"),
 }
 # Formats 1 to 6, read from a copy of the golden container: what their layout adds to check.
 LEGACY_HEADER_CASES = {

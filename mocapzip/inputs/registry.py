@@ -350,6 +350,18 @@ def _stored_hierarchy(text: bytes, entry: dict, lossless: bool) -> tuple[BvhSkel
 def _write_bvh(archive: Archive, index: int) -> Iterator[bytes]:
     """A BVH clip's file: its hierarchy, MOTION lines and frames (docs/format.md, "Decoding a BVH clip")."""
     row, k = archive.clips[index], archive.clips[index]["skeleton"]
+    values = bvh_file_values(archive, index)
+    encoding = archive.meta["skeletons"][k]["encoding"]
+    yield archive.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
+    yield row["bvh"]["motion"].encode(encoding)
+    for text in BvhStyle(**row["bvh"]["style"]).blocks(values):
+        yield text.encode(encoding)
+
+
+def bvh_file_values(archive: Archive, index: int) -> np.ndarray:
+    """A BVH clip's frame values as decoded, in its file's channels, before they are printed
+    (what `_write_bvh` writes, and the Python API reads without the text)."""
+    row, k = archive.clips[index], archive.clips[index]["skeleton"]
     skeleton = archive.stored_skeleton(k)[0]
     lossless = archive.settings.lossless
     # lossless: the values as the file had them, no model needed
@@ -365,11 +377,7 @@ def _write_bvh(archive: Archive, index: int) -> Iterator[bytes]:
             extra_root = archive.extra_root(index, len(skeleton.above))
         values = skeleton.file_values(values, extra_root)
     archive.check_range(index, values)
-    encoding = archive.meta["skeletons"][k]["encoding"]
-    yield archive.skeleton_text(k).encode("latin-1")  # the hierarchy's bytes
-    yield row["bvh"]["motion"].encode(encoding)
-    for text in BvhStyle(**row["bvh"]["style"]).blocks(values):
-        yield text.encode(encoding)
+    return values
 
 
 def _check_bvh_entry(entry: dict, index: int, lossless: bool, fail) -> None:

@@ -235,11 +235,17 @@ def file_positions(bvh: Bvh, units: str | None = None) -> np.ndarray:
     """(frames, points, 3) positions in cm of every joint and End Site (`point_names`) of a BVH
     clip, as the file's channels put them: any channel may move (unlike the codec's model, whose
     bones other than the root keep their OFFSET). `units`: of its lengths; None: `infer_units`."""
+    return file_pose(bvh, units, turns=False)[1]
+
+
+def file_pose(bvh: Bvh, units: str | None = None, turns: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
+    """(world rotations (frames, points, 3, 3) in row vectors, or None unless `turns`; positions)
+    of `file_positions`' points: an End Site turns with its joint."""
     units = _known_units(bvh.joints, units, bvh.path)
     frames, column = bvh.n_frames, 0
-    turns: list[np.ndarray] = []  # each joint's world rotation, row vectors (F, 3, 3)
+    turns_of: list[np.ndarray] = []  # each joint's world rotation, row vectors (F, 3, 3)
     places: list[np.ndarray] = []  # each joint's position (F, 3)
-    out = []
+    out, rotations = [], []
     for joint in bvh.joints:
         offset = np.repeat(np.asarray(joint.offset, dtype=np.float64)[None], frames, axis=0)
         axes, angles = "", []
@@ -251,14 +257,27 @@ def file_positions(bvh: Bvh, units: str | None = None) -> np.ndarray:
             column += 1
         turn = euler_matrix(np.radians(np.stack(angles, axis=-1)), axes) if axes else np.eye(3)[None]
         if joint.parent >= 0:
-            offset = places[joint.parent] + np.einsum("fi,fij->fj", offset, turns[joint.parent])
-            turn = turn @ turns[joint.parent]
+            offset = places[joint.parent] + np.einsum("fi,fij->fj", offset, turns_of[joint.parent])
+            turn = turn @ turns_of[joint.parent]
         places.append(offset)
-        turns.append(np.broadcast_to(turn, (frames, 3, 3)))
+        turns_of.append(np.broadcast_to(turn, (frames, 3, 3)))
         out.append(offset)
+        rotations.append(turns_of[-1])
         if joint.end_site is not None:
-            out.append(offset + np.einsum("i,fij->fj", np.asarray(joint.end_site, dtype=np.float64), turns[-1]))
-    return np.stack(out, axis=1) * UNITS_CM[units]
+            out.append(offset + np.einsum("i,fij->fj", np.asarray(joint.end_site, dtype=np.float64), turns_of[-1]))
+            rotations.append(turns_of[-1])
+    return (np.stack(rotations, axis=1) if turns else None), np.stack(out, axis=1) * UNITS_CM[units]
+
+
+def point_parents(joints: list[BvhJoint]) -> np.ndarray:
+    """The parent of each of `point_names`' points (-1: none): a joint's parent joint, an End Site's joint."""
+    at, parents = [], []
+    for joint in joints:
+        at.append(len(parents))
+        parents.append(-1 if joint.parent < 0 else at[joint.parent])
+        if joint.end_site is not None:
+            parents.append(at[-1])
+    return np.array(parents, dtype=np.int64)
 
 
 def _known_units(joints: list[BvhJoint], units: str | None, path: str | None) -> str:

@@ -42,8 +42,9 @@ def _link(model: SkeletonModel, j: int) -> np.ndarray:
     return model.axis[j] if p < 0 else model.axis[j] @ model.axis[p].T
 
 
-def forward(model: SkeletonModel, values: np.ndarray, layout) -> Pose:
-    """Channels (F, C) laid out as `layout` (a Motion or ChannelLayout) -> Pose.
+def forward(model: SkeletonModel, values: np.ndarray, layout, turns: bool = True) -> Pose:
+    """Channels (F, C) laid out as `layout` (a Motion or ChannelLayout) -> Pose (its rotations None
+    unless `turns`: positions alone take a third less time).
 
     Works on bone frames W_j = C_j R_j stored as (3, 3, F) arrays, so each
     elementary rotation touches two rows of a contiguous block; loops run over
@@ -57,7 +58,7 @@ def forward(model: SkeletonModel, values: np.ndarray, layout) -> Pose:
     to_rad = _to_radians(layout)
     columns = layout.columns()
     frames: list[np.ndarray] = []
-    rotations = np.empty((n_joints, 3, 3, n_frames))
+    rotations = np.empty((n_joints, 3, 3, n_frames)) if turns else None
     positions = np.zeros((n_joints, 3, n_frames))
     for j, name in enumerate(model.names):
         p = model.parents[j]
@@ -75,11 +76,12 @@ def forward(model: SkeletonModel, values: np.ndarray, layout) -> Pose:
                 else:
                     positions[j, "xyz".index(axis)] = chan[:, k] * model.cm_per_unit
         frames.append(frame)
-        rotations[j] = np.tensordot(model.axis[j].T, frame, axes=1)
+        if turns:
+            rotations[j] = np.tensordot(model.axis[j].T, frame, axes=1)
         if p >= 0:  # V R = (V C^T) W
             positions[j] = positions[p] + np.tensordot(model.offsets[j] @ model.axis[j].T, frame, axes=1)
     return Pose(
-        np.ascontiguousarray(rotations.transpose(3, 0, 1, 2)),
+        np.ascontiguousarray(rotations.transpose(3, 0, 1, 2)) if turns else None,
         np.ascontiguousarray(positions.transpose(2, 0, 1)),
     )
 
