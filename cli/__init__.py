@@ -1,6 +1,7 @@
 """The `mcz` command line (installed as `mocapzip.cli`): its commands and options (`main`),
-`mcz bench` and `mcz classify` (`bench`, `classify`), the option choices it offers without
-importing NumPy (`choices`), and how every command fails, in one line (`errors`).
+`mcz bench` and `mcz classify` (`bench`, `classify`), `mcz plot` and `mcz view` (`plots`), the
+option choices it offers without importing NumPy (`choices`), and how every command fails, in
+one line (`errors`).
 
 mcz parallelises with worker processes (`-j`), so BLAS threads inside each process only
 contend for the same cores: measured on a loaded 2-CPU machine, a 180 x 180 eigendecomposition

@@ -21,6 +21,7 @@ from mocapzip import __version__
 from mocapzip.cli import importing
 from mocapzip.cli.bench import bench
 from mocapzip.cli.classify import classify
+from mocapzip.cli.plots import plot, view
 from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, contact_error_cm, max_error_cm,
                                   max_error_value)
 from mocapzip.cli.errors import UsageInOneLine, reports_errors
@@ -601,3 +602,5 @@ def convert(inputs, output, asf, units, force, skip_bad):
 
 main.add_command(bench)
 main.add_command(classify)
+main.add_command(plot)
+main.add_command(view)

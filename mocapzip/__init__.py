@@ -13,7 +13,7 @@ The packages, in pipeline order (docs/architecture.md): `inputs` (which files ar
 `classes` (which clips share a basis), `codec` (the stages), `ratecontrol` (the error budget
 spent), `archive` (compress and decompress), `legacy` (old formats, decode only), and `bench`; `formats` (the file formats) and `cli`
 (the command line) install from formats/ and cli/. Beside them: `stages` (the one registry of
-stages), `convert` (`mcz convert`), `parallel` and `cluster` (the work over `-j` processes or a
+stages), `convert` (`mcz convert`), `plots` (`mcz plot` and `mcz view`, with the `plot` extra), `parallel` and `cluster` (the work over `-j` processes or a
 Dask cluster), `limits` (what every reader checks), `defaults` (values the CLI and API share
 without NumPy), `schema` (the JSON Schema pieces meta and the input formats share) and
 `progress` (progress bars).

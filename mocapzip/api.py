@@ -294,6 +294,12 @@ class Clip:
     def _parents(self) -> np.ndarray:
         return point_parents(self.skeleton) if self.format == "bvh" else np.asarray(self._stored[1].parents)
 
+    @property
+    def parents(self) -> np.ndarray:
+        """(joints,) the index in `joint_names` of each joint's parent, -1 for the root: the bones
+        a stick figure draws, from each joint to its parent."""
+        return self._parents.copy()
+
     def positions(self, dtype=np.float64) -> np.ndarray:
         """(frames, joints, 3) joint positions in cm (`joint_positions` of this clip; BVH:
         `bvh_joint_positions`, in the archive's units), as `dtype`."""

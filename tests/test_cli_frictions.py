@@ -74,6 +74,12 @@ USAGE_ERRORS = [  # (arguments, what the one line says): click's own checks, and
     (["classify", "--train", "labels.csv", "a.amc"], "mcz classify: Missing option '--test'"),
     (["classify", "--train", "labels.csv", "a.amc", "--test", "b.amc", "--threshold", "abc"],
      "mcz classify: Invalid value for --threshold: expected 'auto' or a number (a log density)"),
+    (["plot", GOLDEN_ARGUMENT, "--against", ".", "-o", "x.jpg"],
+     "mcz plot: Invalid value for '-o' / '--output': 'x.jpg': plot writes .png or .svg files (the suffix says which)"),
+    (["plot", GOLDEN_ARGUMENT, "-o", "x.png"], "mcz plot: Missing option '--against'"),
+    (["view", GOLDEN_ARGUMENT], "mcz view: Missing argument 'CLIP'"),
+    (["view", GOLDEN_ARGUMENT, "x.amc", "-o", "x.gif", "--frames", "3"],
+     "mcz view: Invalid value for '--frames': '3': expected A:B, frame numbers from 0 (e.g. 0:240, 120:)"),
     (["bogus"], "mcz: No such command 'bogus'"),
     (["--bogus"], "mcz: No such option '--bogus'"),
 ]

@@ -108,6 +108,17 @@ def _text_row(name: str, s: dict) -> str:
             f"{s['max_error_cm']:>7.2f} {vertex} {skin} {skate}")
 
 
+def series_name(run: dict) -> str:
+    """The curve a run's point is on: its codec and settings but the error target and the bound on
+    every joint, which follows the target (10 x -e by default), so that a sweep's -e 1 and -e 0.5 join."""
+    if run["codec"] == "hou":
+        return "Hou et al. 2015 (best L, k, Q per clip)"
+    if run["codec"] == "hou-shared":
+        return "Hou et al. 2015 (one basis per subject)"
+    settings = [part for part in run["label"].split(", ")[1:] if not part.startswith("every joint <=")]
+    return ", ".join(["mcz", *settings])
+
+
 def plot(report: dict, path) -> None:
     """Ratio-distortion curves: compression ratio (vs AMC text) against mean joint error."""
     try:
@@ -124,9 +135,7 @@ def plot(report: dict, path) -> None:
     series: dict[str, list] = {}
     for r in runs:
         if r["codec"] in ("mcz", "hou", "hou-shared"):
-            key = {"mcz": "mcz " + r["label"].split(", ", 1)[-1], "hou": "Hou et al. 2015 (best L, k, Q per clip)",
-                   "hou-shared": "Hou et al. 2015 (one basis per subject)"}[r["codec"]]
-            series.setdefault(key, []).append(r)
+            series.setdefault(series_name(r), []).append(r)
     markers = itertools.cycle("os^Dv<>p")
     for name, members in series.items():
         members.sort(key=lambda r: r["target_error_cm"])
