@@ -23,6 +23,7 @@ from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
 import mocapzip
+from mocapzip.archive import writer
 from mocapzip import cluster
 from mocapzip.cli.main import main
 from mocapzip.defaults import BLAS_THREAD_VARIABLES
@@ -119,8 +120,8 @@ def test_the_cluster_counts_every_task_done(shared_data, tmp_path, two_workers):
     """The progress bar's count: every task sent to the cluster is counted done by the end: a task
     per clip read, one for the class, a task per clip re-coded with the priors."""
     with cluster.on_cluster(two_workers.scheduler_address) as run:
-        summary = mocapzip.api.writer.compress([os.fspath(shared_data / "cmu" / "07")], tmp_path / "a.mcz",
-                                               mocapzip.archive.Settings(), jobs=run.workers)
+        summary = writer.compress([os.fspath(shared_data / "cmu" / "07")], tmp_path / "a.mcz",
+                                  mocapzip.archive.Settings(), jobs=run.workers)
         assert run.submitted == 2 * summary["clips"] + 1
         for _ in range(500):  # Dask counts a task done just after its result is there
             if run.done == run.submitted:
