@@ -590,8 +590,8 @@ def _in_place_needs_force(output, force: bool) -> None:
 
 def _stored_folder(ctx, param, value):
     if value is not None:
-        with importing():
-            from mocapzip.archive.edit import stored_folder
+        from mocapzip.archive.edit import stored_folder  # not `importing`: a callback runs before `reports_errors`
+
         try:
             stored_folder(value)
         except ValueError as exc:

@@ -74,6 +74,12 @@ USAGE_ERRORS = [  # (arguments, what the one line says): click's own checks, and
     (["classify", "--train", "labels.csv", "a.amc"], "mcz classify: Missing option '--test'"),
     (["classify", "--train", "labels.csv", "a.amc", "--test", "b.amc", "--threshold", "abc"],
      "mcz classify: Invalid value for --threshold: expected 'auto' or a number (a log density)"),
+    (["remove", GOLDEN_ARGUMENT], "mcz remove: Missing argument 'PATTERN...'"),
+    (["remove", GOLDEN_ARGUMENT, "09_01.amc"],
+     "mcz remove: name the new archive with -o, or give -f to replace ARCHIVE in place"),
+    (["append", GOLDEN_ARGUMENT, "x/", "-o", "x.mcz", "--under", "../x"],
+     "mcz append: Invalid value for '--under': must be a relative folder without '.' or '..', got '../x'"),
+    (["append", GOLDEN_ARGUMENT], "mcz append: Missing argument 'INPUTS...'"),
     (["bogus"], "mcz: No such command 'bogus'"),
     (["--bogus"], "mcz: No such option '--bogus'"),
 ]
