@@ -10,7 +10,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -81,12 +80,14 @@ def test_remove_keeps_every_other_clip_byte_for_byte(original, tmp_path):
 
 
 def test_remove_drops_a_skeleton_no_clip_uses(original, tmp_path):
+    """09's skeleton goes: 93's, skeleton 1, becomes skeleton 0."""
     smaller = tmp_path / "smaller.mcz"
-    assert run("remove", original, "93/*", "-o", smaller, "-q").exit_code == 0
+    assert run("remove", original, "09/*", "-o", smaller, "-q").exit_code == 0
     with Archive(smaller) as opened:
-        assert [entry["name"] for entry in opened.meta["skeletons"]] == ["09.asf"]
-        assert [(c["clips"], c["frames"]) for c in opened.meta["classes"]] == [
-            (3, sum(row["frames"] for row in opened.clips))]
+        assert [entry["name"] for entry in opened.meta["skeletons"]] == ["93.asf"]
+        assert [(c["clips"], c["frames"]) for c in opened.meta["classes"]] == [(1, opened.clips[0]["frames"])]
+    before = files(original, tmp_path / "a")
+    assert files(smaller, tmp_path / "b") == {path: data for path, data in before.items() if path.startswith("93/")}
 
 
 def test_append_keeps_the_old_clips_and_holds_the_new_to_their_bounds(original, appended, tmp_path, shared_data):
@@ -158,29 +159,35 @@ def test_an_append_interrupted_leaves_the_archive_as_it_was(original, tmp_path, 
 KILLED_CHILD = r"""
 import os, signal, sys
 from mocapzip.archive import edit
+from mocapzip.formats import mcz
 from mocapzip.cli.main import main
 
 def killed(*args, **kwargs):  # SIGKILL, as the OOM killer sends it: no clean-up runs
     os.kill(os.getpid(), signal.SIGKILL)
 
-edit.code_classes = killed
-main(sys.argv[1:])
+module, name = {"coding": (edit, "code_classes"), "writing": (mcz, "_write_payload")}[sys.argv[1]]
+setattr(module, name, killed)
+main(sys.argv[2:])
 """
 
 
-def test_an_append_killed_leaves_the_archive_as_it_was(original, tmp_path, shared_data):
-    """Killed while the new clips are coded: the new archive's streams wait in an unnamed file, so
-    nothing is left beside the archive."""
+@pytest.mark.parametrize("when", ["coding", "writing"])
+def test_an_append_killed_leaves_the_archive_as_it_was(original, tmp_path, shared_data, when):
+    """Killed while the new clips are coded, the new archive's streams wait in an unnamed file: nothing
+    is left beside the archive. Killed while the new archive is written, its temporary file is left
+    (docs/editing.md), never in the archive's place."""
     folder = tmp_path / "db"
     folder.mkdir()
     archive = folder / "a.mcz"
     archive.write_bytes(original.read_bytes())
     new = linked(tmp_path / "new", shared_data, NEW)
-    child = subprocess.run([sys.executable, "-c", KILLED_CHILD, "append", os.fspath(archive), os.fspath(new), "-f",
-                            "-q", "-j", "1"], env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    child = subprocess.run([sys.executable, "-c", KILLED_CHILD, when, "append", os.fspath(archive), os.fspath(new),
+                            "-f", "-q", "-j", "1"], env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
                            capture_output=True, timeout=300)
     assert child.returncode == -signal.SIGKILL
-    assert _listing(folder) == {"a.mcz": original.read_bytes()}
+    left = _listing(folder)
+    assert left.pop("a.mcz") == original.read_bytes()
+    assert [name.startswith(".a.mcz.tmp-") for name in left] == ([] if when == "coding" else [True])
 
 
 @pytest.mark.parametrize("arguments, said", [
