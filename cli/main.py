@@ -600,6 +600,100 @@ def convert(inputs, output, asf, units, force, skip_bad):
                err=True)
 
 
+def _in_place_needs_force(output, force: bool) -> None:
+    """An edit without -o replaces ARCHIVE: only when asked to with -f."""
+    if output is None and not force:
+        raise click.UsageError("name the new archive with -o, or give -f to replace ARCHIVE in place")
+
+
+def _stored_folder(ctx, param, value):
+    if value is not None:
+        from mocapzip.archive.edit import stored_folder  # not `importing`: a callback runs before `reports_errors`
+
+        try:
+            stored_folder(value)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc).removeprefix("--under "), ctx, param) from None
+    return value
+
+
+EDIT_OUTPUT = click.option("-o", "--output", type=click.Path(dir_okay=False), callback=_named_output,
+                           help="The new archive (default: ARCHIVE itself, replaced only with -f).")
+EDIT_FORCE = click.option("-f", "--force", is_flag=True, help="Overwrite OUTPUT; without -o, replace ARCHIVE in place.")
+
+
+@main.command()
+@click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
+@click.argument("patterns", nargs=-1, required=True, metavar="PATTERN...")
+@EDIT_OUTPUT
+@EDIT_FORCE
+@click.option("-q", "--quiet", is_flag=True, help="No summary.")
+@reports_errors
+def remove(archive_path, patterns, output, force, quiet):
+    """Write ARCHIVE without the clips whose stored path or file name matches a PATTERN (glob).
+
+    Every other clip's streams are copied as they are: it decodes to the same bytes and keeps
+    its errors. A class or skeleton no clip uses any more goes. The new archive is written
+    atomically; ARCHIVE is intact until it is complete. Seconds, where compressing again takes
+    minutes (docs/editing.md).
+
+    \b
+    Examples:
+      mcz remove cmu.mcz '09_*' -o cmu-without-09.mcz
+      mcz remove cmu.mcz 07/07_01.amc -f            in place
+    """
+    _in_place_needs_force(output, force)
+    with importing():
+        from mocapzip.archive.edit import remove as remove_clips
+
+    summary = remove_clips(archive_path, patterns, output, force=force)
+    if not quiet:
+        click.echo(f"{_count(len(summary['removed']), 'clip')} removed, {_count(summary['clips'], 'clip')} left -> "
+                   f"{summary['output']} ({summary['output_bytes']:,} bytes)", err=True)
+
+
+@main.command()
+@click.argument("archive_path", metavar="ARCHIVE", type=click.Path(dir_okay=False))
+@click.argument("inputs", nargs=-1, required=True, type=click.Path())
+@EDIT_OUTPUT
+@click.option("--under", metavar="FOLDER", callback=_stored_folder, default=None,
+              help="Store the new clips under this folder of the archive (e.g. --under 09: 09_01.amc as "
+                   "09/09_01.amc; default: relative to each input folder, as compress stores them).")
+@click.option("--asf", type=click.Path(dir_okay=False), help="Skeleton for every AMC (default: as compress pairs them).")
+@click.option("--units", type=click.Choice(UNITS), default=None,
+              help="Unit of the lengths in BVH files (default: inferred from the skeleton's size).")
+@jobs_option("reading and coding the new clips")
+@click.option("--cache-mb", type=click.IntRange(min=0), default=DEFAULT_CACHE_MB, show_default=True,
+              help="Memory (MB) for new clips kept between the codec's passes, as compress's.")
+@EDIT_FORCE
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")
+@reports_errors
+def append(archive_path, inputs, output, under, asf, units, jobs, cache_mb, force, quiet):
+    """Write ARCHIVE with the AMC and BVH clips under INPUTS added, coded with ARCHIVE's settings.
+
+    The new clips are coded as compress codes them, in classes of their own, and their streams
+    from ARCHIVE's priors; every clip already there is copied as it is. A clip stored under a
+    path ARCHIVE holds is refused. The new archive is written atomically; ARCHIVE is intact
+    until it is complete. What it costs against compressing everything again: docs/editing.md.
+
+    \b
+    Examples:
+      mcz append cmu.mcz ../shared/data/cmu/09 --under 09 -o cmu-with-09.mcz
+      mcz append cmu.mcz new-takes/ -f               in place
+    """
+    _in_place_needs_force(output, force)
+    with importing():
+        from mocapzip.archive.edit import append as append_clips
+        from mocapzip import progress
+
+    progress.set_quiet(quiet)
+    summary = append_clips(archive_path, list(inputs), output, force=force, jobs=jobs, under=under, asf=asf,
+                           units=units, cache_bytes=cache_mb << 20)
+    if not quiet:
+        click.echo(f"{_count(len(summary['added']), 'clip')} added, {_count(summary['clips'], 'clip')} in all -> "
+                   f"{summary['output']} ({summary['output_bytes']:,} bytes)", err=True)
+
+
 main.add_command(bench)
 main.add_command(classify)
 main.add_command(plot)

@@ -197,6 +197,11 @@ class ArchiveWriter:
             self._spool.write(data)
         self._streams[name] = SpooledStream(self._spool, offset, len(data), zlib.crc32(data))
 
+    def read(self, name: str) -> bytes:
+        """The bytes of stream `name`, added before (KeyError if not)."""
+        with _failures_naming(self.path):
+            return self._streams[name].read()
+
     @property
     def names(self) -> list[str]:
         """Names of the streams added so far, in the order they came."""

@@ -80,6 +80,12 @@ USAGE_ERRORS = [  # (arguments, what the one line says): click's own checks, and
     (["view", GOLDEN_ARGUMENT], "mcz view: Missing argument 'CLIP'"),
     (["view", GOLDEN_ARGUMENT, "x.amc", "-o", "x.gif", "--frames", "3"],
      "mcz view: Invalid value for '--frames': '3': expected A:B, frame numbers from 0 (e.g. 0:240, 120:)"),
+    (["remove", GOLDEN_ARGUMENT], "mcz remove: Missing argument 'PATTERN...'"),
+    (["remove", GOLDEN_ARGUMENT, "09_01.amc"],
+     "mcz remove: name the new archive with -o, or give -f to replace ARCHIVE in place"),
+    (["append", GOLDEN_ARGUMENT, "x/", "-o", "x.mcz", "--under", "../x"],
+     "mcz append: Invalid value for '--under': must be a relative folder without '.' or '..', got '../x'"),
+    (["append", GOLDEN_ARGUMENT], "mcz append: Missing argument 'INPUTS...'"),
     (["bogus"], "mcz: No such command 'bogus'"),
     (["--bogus"], "mcz: No such option '--bogus'"),
 ]

@@ -1,5 +1,5 @@
 """The archive: settings (`settings`), the encoder (`writer`, a recipe of the compress `passes/`),
-the reader (`reader`), the checks on meta every reader runs (`meta`), the `skeletons` stream
+the reader (`reader`), `mcz remove` and `mcz append` (`edit`), the checks on meta every reader runs (`meta`), the `skeletons` stream
 (`skeletons`) and the zstd dictionaries and skeleton means of the format (`dictionaries/`). Old
 formats' differences are `mocapzip.legacy`'s.
 

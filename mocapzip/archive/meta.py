@@ -228,16 +228,7 @@ def _check_class_counts(meta: dict, fail) -> None:
         if classes:
             raise fail("classes", "a lossless archive has no classes")
         return
-    clips, frames = [set() for _ in classes], [0] * len(classes)
-    for i, row in enumerate(meta["clips"]):  # indices and segments already checked (`_check_clip`)
-        if "segments" not in row:
-            clips[row["class"]].add(i)
-            frames[row["class"]] += row["frames"]
-            continue
-        for part in row["segments"]:
-            lo, hi = coded_range(part["first"], part["frames"], row["frames"], row["segment_overlap"])
-            clips[part["class"]].add(i)
-            frames[part["class"]] += hi - lo
+    clips, frames = class_counts(meta)  # indices and segments already checked (`_check_clip`)
     for k, row in enumerate(classes):
         if not clips[k]:
             raise fail(f"classes[{k}]", "no clip or segment is in this class")
@@ -246,6 +237,22 @@ def _check_class_counts(meta: dict, fail) -> None:
                                               "in this class")
         if row["frames"] != frames[k]:
             raise fail(f"classes[{k}].frames", f"{row['frames']}, but its clips and segments code {frames[k]}")
+
+
+def class_counts(meta: dict) -> tuple[list[set], list[int]]:
+    """Per class of a lossy meta, the clips with a row or a segment in it and the frames it codes
+    (a whole clip's `frames`, a segment's coded range), as compress counts them."""
+    clips, frames = [set() for _ in meta["classes"]], [0] * len(meta["classes"])
+    for i, row in enumerate(meta["clips"]):
+        if "segments" not in row:
+            clips[row["class"]].add(i)
+            frames[row["class"]] += row["frames"]
+            continue
+        for part in row["segments"]:
+            lo, hi = coded_range(part["first"], part["frames"], row["frames"], row["segment_overlap"])
+            clips[part["class"]].add(i)
+            frames[part["class"]] += hi - lo
+    return clips, frames
 
 
 def _check_tensor_classes(meta: dict, fail) -> list[str]:

@@ -127,6 +127,10 @@ class Archive:
         except KeyError:
             raise ArchiveError(f"{name}: stream missing", self.path) from None
 
+    def stream(self, name: str) -> bytes:
+        """Stream `name` as stored, its CRC32 checked: what `mcz remove` and `mcz append` copy (`archive.edit`)."""
+        return self._stream(name)
+
     def _unpacked(self, name: str) -> bytes:
         """Stream `meta` (or an old format's `skeletons`) unzstd'd, with its dictionary where the format has one."""
         used = dictionary(STREAM_DICTIONARIES[name]) if self.format.stream_dictionaries else None

@@ -46,14 +46,22 @@ class Written:
 def write(job: Job, clips: ClipsRead, classes: Classes, coded: CodedClasses, stored: StoredClips,
           archive: ArchiveWriter) -> Written:
     """Meta and the skeletons stream, and every stream the passes hold, to `archive`, committed."""
+    meta, texts, is_asf = assemble(job, clips, classes, coded, stored, archive)
+    return Written(tuple(meta["clips"]), clips.skipped, commit(archive, meta, texts, is_asf, job.output))
+
+
+def assemble(job: Job, clips: ClipsRead, classes: Classes, coded: CodedClasses, stored: StoredClips,
+             archive: ArchiveWriter) -> tuple[dict, list[bytes], list[bool]]:
+    """Every stream the passes hold, added to `archive`; (meta, the skeletons' texts, whether each
+    is an ASF) for `commit` (`archive.edit` merges them into another archive's first)."""
     codings = coded.clips or (None,) * len(clips.rows)  # none in a lossless archive
-    rows = tuple(_clip_row(*parts) for parts in zip(clips.rows, clips.skeleton_of, classes.clip_class, codings))
+    rows = [_clip_row(*parts) for parts in zip(clips.rows, clips.skeleton_of, classes.clip_class, codings)]
     meta = {
         "tool": f"mocapzip {__version__}",
         "settings": _stored_settings(replace(job.settings, coefficient_coder=stored.coder)),
         "skeletons": [stored.format.entry(stored.path.name, stored.skeleton) for stored in clips.skeletons],
         "classes": [_class_row(record) for record in coded.classes],
-        "clips": list(rows),
+        "clips": rows,
     }
     if classes.auto_plans is not None:
         meta["auto_classes"] = classes.auto_plans
@@ -62,19 +70,25 @@ def write(job: Job, clips: ClipsRead, classes: Classes, coded: CodedClasses, sto
     streams = {f"extra_root/{i:05d}": stream for i, stream in enumerate(clips.extra_roots) if stream is not None}
     for name, stream in {**streams, **coded.streams, **stored.streams}.items():
         archive.add(name, stream)
+    return (meta, [stored.skeleton.text for stored in clips.skeletons],
+            [stored.format.asf_skeletons for stored in clips.skeletons])
+
+
+def commit(archive: ArchiveWriter, meta: dict, texts: list[bytes], is_asf: list[bool], output: str) -> int:
+    """`meta` checked as every reader checks it against the streams `archive` holds (compress never
+    writes an archive a reader refuses), it and the skeletons stream of `texts` added, and the
+    archive written; its size."""
     order = ["meta", "skeletons", *sorted(archive.names)]
-    # Checked as every reader checks them: compress never writes an archive a reader refuses.
-    validate_meta(meta, order, job.output, FORMAT_VERSION)
-    texts = [stored.skeleton.text for stored in clips.skeletons]
+    validate_meta(meta, order, output, FORMAT_VERSION)
     unpacked = {"meta": json.dumps(meta, sort_keys=True).encode(), "skeletons": pack_blobs(texts)}
     for name, data in unpacked.items():
         if len(data) > MAX_DECODED_STREAM_BYTES:
             raise MocapFormatError(f"the archive's {name} would take {len(data):,} bytes, more than the "
                                    f"{MAX_DECODED_STREAM_BYTES:,} a reader accepts: compress fewer clips at once",
-                                   job.output)
+                                   output)
     archive.add("meta", encode_bytes(unpacked["meta"], dictionary(STREAM_DICTIONARIES["meta"])))
-    archive.add("skeletons", encode_skeletons(texts, [stored.format.asf_skeletons for stored in clips.skeletons]))
-    return Written(rows, clips.skipped, archive.commit(order, contents_of(meta)))
+    archive.add("skeletons", encode_skeletons(texts, is_asf))
+    return archive.commit(order, contents_of(meta))
 
 
 def summary(job: Job, clips: ClipsRead, written: Written, seconds: float) -> dict:

@@ -33,15 +33,23 @@ def stored_streams(interim: dict[str, bytes], coder: str, jobs: int = 1) -> tupl
         return coder, interim
     names = sorted(interim)
     priors = Priors.train(_interim_matrices(interim[name]) for name in progress(names, desc="priors", unit="clip"))
-    _SHARED["priors"] = priors  # the workers fork from here; each gets its clip's stream as its item
-    try:
-        primed = dict(zip(names, parallel_map(_primed_stream, [interim[name] for name in names], jobs)))
-    finally:
-        _SHARED.clear()
+    primed = primed_streams(interim, priors, jobs)
     primed["priors"] = encode_bytes(priors.encode())
     if coder == "primed" or sum(map(len, primed.values())) < sum(map(len, interim.values())):
         return "primed", primed
     return "context", interim
+
+
+def primed_streams(interim: dict[str, bytes], priors: Priors, jobs: int = 1) -> dict[str, bytes]:
+    """The clip streams coded INTERIM_CODER, by name, coded again from `priors` ("primed") by `jobs`
+    worker processes: the same coefficients, so they decode to the same poses (`mcz append` codes
+    new clips from the archive's priors this way)."""
+    names = sorted(interim)
+    _SHARED["priors"] = priors  # the workers fork from here; each gets its clip's stream as its item
+    try:
+        return dict(zip(names, parallel_map(_primed_stream, [interim[name] for name in names], jobs)))
+    finally:
+        _SHARED.clear()
 
 
 _SHARED = worker_state(__name__)  # the priors the forked workers code the clips from (`_primed_stream`)
