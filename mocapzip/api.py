@@ -18,10 +18,9 @@ from __future__ import annotations
 import difflib
 import functools
 import numbers
-import re
 import os
 from collections.abc import Iterable, Iterator
-from contextlib import contextmanager, nullcontext
+from contextlib import nullcontext
 from functools import cached_property
 from pathlib import Path, PurePosixPath
 from typing import NamedTuple
@@ -31,15 +30,15 @@ import numpy as np
 from mocapzip.archive import reader, settings
 from mocapzip.archive.settings import SettingsError
 from mocapzip.defaults import ACL_SHELL_CM, BLAS_THREAD_VARIABLES, MAX_TO_MEAN
-from mocapzip.convert import amc_as_bvh, bvh_as_asf_amc
-from mocapzip.formats.amc import AmcStyle, Motion, format_amc, read_amc, write_amc
+from mocapzip.convert import SAVE_CONVERSIONS
+from mocapzip.formats.amc import Motion, read_amc, write_amc
 from mocapzip.formats.asf import Skeleton, read_asf, write_asf
-from mocapzip.formats.bvh import Bvh, BvhJoint, BvhStyle, format_bvh, joint_columns, read_bvh, write_bvh
+from mocapzip.formats.bvh import Bvh, BvhJoint, read_bvh, write_bvh
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveError
-from mocapzip.formats.text import as_printed, write_file_atomically
-from mocapzip.inputs.registry import ClipApi, bvh_file_values
-from mocapzip.motion.bvh_skeleton import bvh_skeleton, file_pose, file_positions, point_names, point_parents
+from mocapzip.formats.text import write_file_atomically
+from mocapzip.inputs.registry import ClipApi, input_formats
+from mocapzip.motion.bvh_skeleton import file_positions, point_names
 from mocapzip.motion.kinematics import Pose, forward
 from mocapzip.motion.metrics import ShellError, shell_errors
 from mocapzip.motion.skeleton import SkeletonModel
@@ -152,11 +151,10 @@ class Clip:
         self.frames: int = self._stop - self._start
         # the rate the clip's files stated, else compress's --fps (default 120): ASF/AMC have no field for it
         self.fps: float = row.get("fps", archive._archive.settings.fps)
-        # "amc" or "bvh": the kind of file the clip came from, which `decompress` writes (`inputs.registry`)
+        # its input format's name: the kind of file it came from, which `decompress` writes (`inputs.registry`)
         self._format = archive._archive.clip_format(index)
         self.format: str = self._format.name
         self._entry = archive._archive.meta["skeletons"][row["skeleton"]]  # its skeleton's entry in meta
-        self._units = self._entry.get("units")  # BVH lengths
         lossless = archive._archive.settings.lossless
         self.error = ClipFidelity(row["error_cm"], 0.0 if lossless else row.get("p99_error_cm"), row["max_error_cm"],
                                   0.0 if lossless else row.get("max_vertex_error_cm"))
@@ -186,55 +184,42 @@ class Clip:
     def skeleton(self) -> Skeleton | list[BvhJoint]:
         """The clip's ASF skeleton, parsed once per archive (the file itself, byte for byte:
         `asf_text`); for a BVH clip, its joints."""
-        skeleton = self._stored[0]
-        return skeleton.joints if self.format == "bvh" else skeleton
+        return self._api.skeleton(self._stored[0])
 
     @cached_property
     def asf_text(self) -> str:
         """The ASF file as it was compressed, one character per byte (Latin-1); a BVH clip has none."""
-        self._only("amc", "asf_text")
-        return self._archive.skeleton_text(self._skeleton)
+        self._only("asf_text")
+        return self._whole._skeleton_text
 
     @cached_property
     def motion(self) -> Motion:
         """The clip as the AMC file `decompress` writes, read back: bones, counts, values (read-only);
         a BVH clip's is `bvh`."""
-        self._only("amc", "motion")
-        row = self._row
-        first = row["first_frame"] + self._start
-        return Motion(row["bones"], row["counts"], self.channels, np.arange(first, first + self.frames),
-                      row["header"], row["path"], AmcStyle(**row["style"]))
+        return self._file("motion")
 
     @cached_property
     def bvh(self) -> Bvh:
         """A BVH clip as the file `decompress` writes (values read-only), made without its text: its
         header (hierarchy and MOTION lines) and `style` as stored, `format_bvh` of it that file."""
-        self._only("bvh", "bvh")
-        motion = self._row["bvh"]["motion"]
-        frame_time = re.search(r"Frame Time:[ \t]*([^ \t\r\n]+)", motion, re.IGNORECASE)
-        encoding, hierarchy = self._hierarchy
-        return Bvh(list(self.skeleton), float(frame_time[1]), self.channels, hierarchy + motion,
-                   BvhStyle(**self._row["bvh"]["style"]), None, encoding, self.path)
+        return self._file("bvh")
+
+    def _file(self, name: str) -> Motion | Bvh:
+        """The clip's file (`ClipApi.file`, called `name` here), made without its text."""
+        self._only(name)
+        return self._api.make_file(self, self._row, self._start, self._whole._skeleton_text, self._entry)
 
     @cached_property
-    def _hierarchy(self) -> tuple[str, str]:
-        """A BVH clip's (encoding, hierarchy text), kept: a closed archive's clip still has them."""
-        encoding = self._archive.meta["skeletons"][self._skeleton]["encoding"]
-        return encoding, self._archive.skeleton_text(self._skeleton).encode("latin-1").decode(encoding)
+    def _skeleton_text(self) -> str:
+        """The skeleton's text as stored, kept: a closed archive's clip still has it."""
+        return self._archive.skeleton_text(self._skeleton)
 
     @cached_property
     def channels(self) -> np.ndarray:
         """(frames, values) float64, read-only: the values of the file `decompress` writes (made
         without its text: each as printed and read back). AMC: bone after bone in `motion.bones`
         order; BVH: in the order of its joints' CHANNELS. Named in `channel_labels`."""
-        raw = self._whole._decoded[self._start : self._stop]
-        row = self._row
-        if self.format == "bvh":
-            number = row["bvh"]["style"].get("number", "g6")
-            values = raw.copy() if number == "repr" else as_printed(raw, number[0], int(number[1:]))
-        else:
-            style = AmcStyle(**row["style"])
-            values = as_printed(raw, style.notation, style.digits)
+        values = self._api.printed(self._row, self._whole._decoded[self._start : self._stop])
         values.flags.writeable = False  # positions() are computed from them
         return values
 
@@ -246,53 +231,37 @@ class Clip:
     def channel_labels(self) -> tuple[str, ...]:
         """What each column of `channels` holds, as "joint.dof", the dof as the file names it: AMC
         "lfemur.rx", "root.tx"; BVH "Hips.Xposition", "Hips.Zrotation"."""
-        if self.format == "bvh":
-            return tuple(f"{self.skeleton[j].name}.{name}" for j, name in joint_columns(self.skeleton))
-        row, model = self._row, self._stored[1]
-        return tuple(f"{bone}.{''.join(model.channels[model.index[bone]][k])}"
-                     for bone, count in zip(row["bones"], row["counts"]) for k in range(count))
+        return self._api.labels(self._row, *self._stored)
 
     @cached_property
     @_one_blas_thread
     def _decoded(self) -> np.ndarray:
         """The whole clip's values in its file's channels, as decoded, before they are printed."""
-        self._api  # a format the API does not read (`InputFormat.api`) is refused here, by name
-        archive = self._archive
-        self._stored  # kept with the values: a closed archive's clip still poses them
-        if self.format == "bvh":
-            self._hierarchy
-            return bvh_file_values(archive, self.index)
-        values = archive.decode(self.index).values
-        archive.check_range(self.index, values)
-        return values
+        api = self._api  # a format the API does not read (`InputFormat.api`) is refused here, by name
+        self._stored, self._skeleton_text  # kept with the values: a closed archive's clip still poses them
+        return api.decoded(self._archive, self.index)
 
     @cached_property
     def joint_names(self) -> tuple[str, ...]:
         """The joints of `positions()`: the root, then the end of every bone (BVH: every joint and
         End Site, in file order: `bvh_point_names`)."""
-        if self.format == "bvh":
-            return point_names(self.skeleton)
-        return self._stored[1].names
+        return self._api.joint_names(*self._stored)
 
     @cached_property
     @_one_blas_thread
     def _positions(self) -> np.ndarray:
         """(frames, joints, 3) float64 positions of `joint_names`."""
-        if self.format == "bvh":
-            return bvh_joint_positions(self.bvh, self._units)
-        return forward(self._stored[1], self.channels, self.motion, turns=False).positions
+        return self._api.positions(self, self._stored[1], self._entry)
 
     @cached_property
     @_one_blas_thread
     def _rotations(self) -> np.ndarray:
         """(frames, joints, 3, 3) float64 world rotations of `joint_names`, on row vectors."""
-        if self.format == "bvh":
-            return file_pose(self.bvh, self._units)[0]
-        return forward(self._stored[1], self.channels, self.motion).rotations
+        return self._api.rotations(self, self._stored[1], self._entry)
 
     @cached_property
     def _parents(self) -> np.ndarray:
-        return point_parents(self.skeleton) if self.format == "bvh" else np.asarray(self._stored[1].parents)
+        return self._api.parents(*self._stored)
 
     @property
     def parents(self) -> np.ndarray:
@@ -331,21 +300,20 @@ class Clip:
         """Write the clip to `path` in the format its suffix names: its own (the file `decompress`
         writes, an AMC with its ASF beside it as <stem>.asf) or the other, converted as `mcz convert`
         does (AMC to BVH, BVH to AMC and ASF). Returns the files written; FileExistsError unless `force`."""
-        target = Path(path)
-        suffix = target.suffix.lower()
-        if suffix not in (".amc", ".bvh"):
-            raise ValueError(f"{target}: save writes .amc or .bvh files, not {target.suffix or 'no suffix'}")
-        names = [target, target.with_suffix(".asf")] if suffix == ".amc" else [target]
+        api, own, target = self._api, self._format, Path(path)
+        into = [f for f in input_formats() if f is own or (own, f) in SAVE_CONVERSIONS]
+        saved_as = next((f for f in into if target.suffix.lower() in f.suffixes), None)
+        if saved_as is None:
+            raise ValueError(f"{target}: save writes {' or '.join(s for f in into for s in f.suffixes)} files, "
+                             f"not {target.suffix or 'no suffix'}")
+        names = [target, *([target.with_suffix(saved_as.skeleton_suffix)] if saved_as.skeleton_suffix else [])]
         existing = [p for p in names if os.path.lexists(p)]
         if existing and not force:
             raise FileExistsError(None, "already exists", os.fspath(existing[0]))
-        if suffix == ".bvh":
-            files = [format_bvh(self.bvh).encode(self.bvh.encoding)] if self.format == "bvh" else \
-                amc_as_bvh(self.skeleton, self.motion, self.fps, os.fspath(target), self.path)
-        elif self.format == "amc":
-            files = [format_amc(self.motion).encode(self.motion.style.encoding), self.asf_text.encode("latin-1")]
+        if saved_as is own:
+            files = api.own_files(self)
         else:
-            files = bvh_as_asf_amc(self.bvh, self._units, [os.fspath(n) for n in names], self.path)
+            files = SAVE_CONVERSIONS[own, saved_as](self, self._entry, [os.fspath(n) for n in names])
         for name, data in zip(names, files):
             write_file_atomically(name, data)
         return [os.fspath(n) for n in names]
@@ -370,16 +338,16 @@ class Clip:
 
     def _posed(self, clip_file: Motion | Bvh) -> tuple[SkeletonModel, Pose]:
         """The model of this clip's skeleton and `clip_file` posed on it by forward kinematics (a
-        BVH file's lengths in the archive's units)."""
-        if isinstance(clip_file, Bvh):
-            skeleton = bvh_skeleton(clip_file.joints, self._units, clip_file.path)
-            model, motion = skeleton.model, skeleton.motion(clip_file, lossless=False)
-        else:
-            model, motion = self._stored[1], clip_file
+        BVH file's lengths in the archive's units), as the format whose file it is says."""
+        api = next((f.api for f in input_formats() if f.api is not None and isinstance(clip_file, f.api.file_type)),
+                   self._api)
+        model, motion = api.posed(self._stored[1], clip_file, self._entry)
         return model, forward(model, motion.values, motion)
 
-    def _only(self, kind: str, what: str) -> None:
-        if self.format != kind:
+    def _only(self, what: str) -> None:
+        """AttributeError unless the clip's format has the attribute `what` (`ClipApi.file`, `also_has`)."""
+        api = self._format.api
+        if api is None or what not in (api.file, *api.also_has):
             raise AttributeError(f"{self.path} is a {self.format.upper()} clip: it has no {what}")
 
     @property

@@ -260,6 +260,12 @@ def convert(inputs, output, asf=None, units: str | None = None, force: bool = Fa
 
 
 _BECOMES = {AMC: [".bvh"], BVH: [".amc", ".asf"]}  # the suffixes of the files a clip of each format becomes
+# what the API's `Clip.save` converts a clip to: (its format, the other) -> (clip, its skeleton's entry in meta,
+# the names of the files) -> their bytes, as `mcz convert` makes them
+SAVE_CONVERSIONS = {
+    (AMC, BVH): lambda clip, entry, targets: amc_as_bvh(clip.skeleton, clip.motion, clip.fps, targets[0], clip.path),
+    (BVH, AMC): lambda clip, entry, targets: bvh_as_asf_amc(clip.bvh, entry["units"], targets, clip.path),
+}
 
 
 def _targets(source) -> list[str]:

@@ -31,8 +31,9 @@ def chan_text(values: np.ndarray) -> bytes:
 
 
 @pytest.fixture
-def chan_folder(shared_data, tmp_path):
-    """A folder of cmu/09's clips as .chan files, the format registered while the test runs."""
+def chan_folder(request, shared_data, tmp_path):
+    """A folder of cmu/09's clips as .chan files, the format registered while the test runs (with the
+    API hooks a test passes as its parameter, else none)."""
     subject = shared_data / "cmu" / "09"
     clips = [read_amc(path) for path in sorted(subject.glob("*.amc"))]
     bones, counts = clips[0].bones, clips[0].counts
@@ -48,7 +49,8 @@ def chan_folder(shared_data, tmp_path):
         return [chan_text(archive.decode(index).values)]
 
     # the whole format: its name and suffix, its skeleton's text (an ASF, read as an AMC's), reader, writer
-    register(InputFormat("chan", (".chan",), lambda path: asf, AMC.read_skeleton, read, write))
+    register(InputFormat("chan", (".chan",), lambda path: asf, AMC.read_skeleton, read, write,
+                         api=getattr(request, "param", None)))
     folder = tmp_path / "chan"
     folder.mkdir()
     for clip in clips:
@@ -80,6 +82,29 @@ def test_a_registered_format_comes_back_byte_for_byte_lossless(chan_folder, tmp_
     with mocapzip.open(archive) as opened:  # the API reads a format only as the format says (`InputFormat.api`)
         with pytest.raises(AttributeError, match="is a CHAN clip, which the API does not read"):
             opened[0].positions()
+
+
+# read as an AMC clip (its `motion`), without an ASF file of its own, saved as a .chan file
+CHAN_API = AMC.api._replace(also_has=(), own_files=lambda clip: [chan_text(clip.channels)])
+
+
+@pytest.mark.parametrize("chan_folder", [CHAN_API], indirect=True)
+def test_the_api_reads_a_format_as_its_hooks_say(chan_folder, shared_data, tmp_path):
+    mcz("compress", str(chan_folder), "--lossless", "-o", str(tmp_path / "chan.mcz"), "-q")
+    source = read_amc(shared_data / "cmu" / "09" / "09_01.amc")
+    model = SkeletonModel.from_asf(read_asf(shared_data / "cmu" / "09" / "09.asf"))
+    with mocapzip.open(tmp_path / "chan.mcz") as opened:
+        clip = opened["09_01.chan"]
+        assert clip.format == "chan" and clip.channel_labels[:4] == ("root.tx", "root.ty", "root.tz", "root.rx")
+        assert np.allclose(clip.channels, source.values, rtol=0, atol=1e-6)  # as %.6g wrote them
+        assert np.allclose(clip.positions(), forward(model, source.values, source).positions, rtol=0, atol=1e-4)
+        assert clip.save(tmp_path / "x.chan") == [str(tmp_path / "x.chan")]
+        assert (tmp_path / "x.chan").read_bytes() == chan_text(clip.channels)
+        with pytest.raises(ValueError, match="save writes .chan files, not .amc"):  # it declares no conversion
+            clip.save(tmp_path / "x.amc")
+        assert clip.motion.bones == source.bones
+        with pytest.raises(AttributeError, match="is a CHAN clip: it has no asf_text"):
+            clip.asf_text
 
 
 def test_a_row_field_comes_with_its_schema():

@@ -22,6 +22,7 @@ exactly) has defaults that do nothing.
 from __future__ import annotations
 
 import os
+import re
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field, replace
@@ -29,14 +30,15 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from mocapzip.formats.amc import Motion, amc_blocks, read_amc
+from mocapzip.formats.amc import AmcStyle, Motion, amc_blocks, format_amc, read_amc
 from mocapzip.formats.asf import Skeleton, parse_asf, read_asf_bytes
 from mocapzip.defaults import UNITS_CM
 from mocapzip.formats.bvh import MAX_MOTION_CHARS, NUMBER_STYLES, Bvh, BvhStyle, motion_lines_problem, parse_hierarchy
-from mocapzip.formats.bvh import read_bvh, read_hierarchy, split_header
+from mocapzip.formats.bvh import format_bvh, joint_columns, read_bvh, read_hierarchy, split_header
 from mocapzip.formats.errors import MocapFormatError
-from mocapzip.formats.text import detect_encoding
-from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout, file_positions, point_names, unmodelled
+from mocapzip.formats.text import as_printed, detect_encoding
+from mocapzip.motion.bvh_skeleton import BvhSkeleton, bvh_skeleton, file_layout, file_pose, file_positions, point_names
+from mocapzip.motion.bvh_skeleton import point_parents, unmodelled
 from mocapzip.motion.kinematics import forward
 from mocapzip.motion.skeleton import SkeletonModel
 from mocapzip.schema import NEWLINE, record
@@ -83,16 +85,27 @@ class Extras(NamedTuple):
 
 
 class ClipApi(NamedTuple):
-    """What the API's `Clip` (`mocapzip.api`) does the format's own way (`InputFormat.api`). Each
-    hook takes the clip; `entry` is its skeleton's entry in meta."""
+    """What the API's `Clip` (`mocapzip.api`) does the format's own way (`InputFormat.api`). The hooks
+    take what they need: `clip` the API's clip, `row` its row in meta, `stored` and `model` its
+    skeleton as the archive reads it (`Archive.stored_skeleton`), `entry` the skeleton's entry in meta."""
 
     file: str  # the clip's attribute that is its file as decompress writes it, read back: `motion`, `bvh`
     file_type: type  # that file's type (`Motion`, `Bvh`): what `Clip.shell_error` takes already read
-    skeleton: Callable  # (clip, entry) -> its skeleton: an ASF `Skeleton`, a BVH file's joints
-    joint_names: Callable  # (clip) -> the joints of `positions`, in order
-    positions: Callable  # (clip, entry) -> (frames, joints, 3) positions in cm
+    also_has: tuple[str, ...]  # the clip's other attributes that only this format's clips have (`asf_text`)
+    skeleton: Callable  # (stored) -> `Clip.skeleton`: an ASF `Skeleton`, a BVH file's joints
+    decoded: Callable  # (archive, index) -> the clip's values in its file's channels, before they are printed
+    printed: Callable  # (row, decoded values) -> those values as its file prints them, read back
+    # (clip, row, the frames of the whole clip before a range's, skeleton text as stored, entry) -> its `file`,
+    # made without its text
+    make_file: Callable
+    labels: Callable  # (row, stored, model) -> `Clip.channel_labels`
+    joint_names: Callable  # (stored, model) -> the joints of `Clip.positions`, in order
+    parents: Callable  # (stored, model) -> each joint's parent among them (-1: none)
+    positions: Callable  # (clip, model, entry) -> (frames, joints, 3) positions in cm
+    rotations: Callable  # (clip, model, entry) -> (frames, joints, 3, 3) world rotations, on row vectors
+    own_files: Callable  # (clip) -> the bytes `Clip.save` writes in its own format: its file, then its skeleton's
     read_source: Callable  # (clip, path) -> a source file of the clip, read as `file_type`
-    posed: Callable  # (clip, file of `file_type`, entry) -> (model, the channels `forward` takes)
+    posed: Callable  # (the clip's model, a file of `file_type`, entry) -> (model, the channels `forward` takes)
 
 
 @dataclass(frozen=True, eq=False)
@@ -252,17 +265,45 @@ def _check_amc_row(row: dict, index: int, fail) -> list[str]:
     return []
 
 
-def _asf_model(clip) -> SkeletonModel:
-    return SkeletonModel.from_asf(clip.skeleton)
+def _decoded_amc(archive: Archive, index: int) -> np.ndarray:
+    """An AMC clip's values as decoded, checked to be values a reader takes back."""
+    values = archive.decode(index).values
+    archive.check_range(index, values)
+    return values
+
+
+def _labels_amc(row: dict, skeleton: Skeleton, model: SkeletonModel) -> tuple[str, ...]:
+    """Each AMC value's "bone.dof" ("lfemur.rx", "root.tx")."""
+    return tuple(f"{bone}.{''.join(model.channels[model.index[bone]][k])}"
+                 for bone, count in zip(row["bones"], row["counts"]) for k in range(count))
+
+
+def _made_amc(clip, row: dict, start: int, text: str, entry: dict) -> Motion:
+    first = row["first_frame"] + start
+    return Motion(row["bones"], row["counts"], clip.channels, np.arange(first, first + clip.frames),
+                  row["header"], row["path"], AmcStyle(**row["style"]))
+
+
+def _printed_amc(row: dict, values: np.ndarray) -> np.ndarray:
+    style = AmcStyle(**row["style"])
+    return as_printed(values, style.notation, style.digits)
 
 
 _AMC_API = ClipApi(
-    "motion", Motion,
-    skeleton=lambda clip, entry: parse_asf(clip.asf_text.encode("latin-1"), entry["name"]),
-    joint_names=lambda clip: _asf_model(clip).names,
-    positions=lambda clip, entry: forward(_asf_model(clip), clip.motion.values, clip.motion).positions,
+    "motion", Motion, ("asf_text",),
+    skeleton=lambda stored: stored,
+    decoded=_decoded_amc,
+    printed=_printed_amc,
+    make_file=_made_amc,
+    labels=_labels_amc,
+    joint_names=lambda stored, model: model.names,
+    parents=lambda stored, model: np.asarray(model.parents),
+    positions=lambda clip, model, entry: forward(model, clip.channels, clip.motion, turns=False).positions,
+    rotations=lambda clip, model, entry: forward(model, clip.channels, clip.motion).rotations,
+    own_files=lambda clip: [format_amc(clip.motion).encode(clip.motion.style.encoding),
+                            clip.asf_text.encode("latin-1")],
     read_source=lambda clip, path: read_amc(path, clip.skeleton),
-    posed=lambda clip, motion, entry: (_asf_model(clip), motion))
+    posed=lambda model, motion, entry: (model, motion))
 
 
 AMC = register(InputFormat(
@@ -424,17 +465,39 @@ def _described_hierarchies(skeletons: list[dict]) -> str:
                      for (unit, inferred), n in sorted(units.items(), key=str))
 
 
-def _posed_bvh(clip, bvh: Bvh, entry: dict) -> tuple[SkeletonModel, Motion]:
+def _posed_bvh(model: SkeletonModel | None, bvh: Bvh, entry: dict) -> tuple[SkeletonModel, Motion]:
     """A BVH file's model and channels, its lengths in the archive's units (`BvhSkeleton.motion`, lossy)."""
-    skeleton = bvh_skeleton(bvh.joints, entry["units"], bvh.path)
+    skeleton = bvh_skeleton(bvh.joints, entry.get("units"), bvh.path)
     return skeleton.model, skeleton.motion(bvh, lossless=False)
 
 
+def _printed_bvh(row: dict, values: np.ndarray) -> np.ndarray:
+    number = row["bvh"]["style"].get("number", "g6")
+    return values.copy() if number == "repr" else as_printed(values, number[0], int(number[1:]))
+
+
+def _made_bvh(clip, row: dict, start: int, text: str, entry: dict) -> Bvh:
+    """A BVH clip's file from its header (hierarchy and MOTION lines) and style as stored."""
+    motion = row["bvh"]["motion"]
+    frame_time = re.search(r"Frame Time:[ \t]*([^ \t\r\n]+)", motion, re.IGNORECASE)
+    hierarchy = text.encode("latin-1").decode(entry["encoding"])
+    return Bvh(list(clip.skeleton), float(frame_time[1]), clip.channels, hierarchy + motion,
+               BvhStyle(**row["bvh"]["style"]), None, entry["encoding"], clip.path)
+
+
 _BVH_API = ClipApi(
-    "bvh", Bvh,
-    skeleton=lambda clip, entry: clip.bvh.joints,
-    joint_names=lambda clip: point_names(clip.bvh.joints),
-    positions=lambda clip, entry: file_positions(clip.bvh, entry["units"]),
+    "bvh", Bvh, (),
+    skeleton=lambda stored: stored.joints,
+    decoded=bvh_file_values,
+    printed=_printed_bvh,
+    make_file=_made_bvh,
+    labels=lambda row, stored, model: tuple(f"{stored.joints[j].name}.{name}"
+                                            for j, name in joint_columns(stored.joints)),
+    joint_names=lambda stored, model: point_names(stored.joints),
+    parents=lambda stored, model: point_parents(stored.joints),
+    positions=lambda clip, model, entry: file_positions(clip.bvh, entry["units"]),
+    rotations=lambda clip, model, entry: file_pose(clip.bvh, entry["units"])[0],
+    own_files=lambda clip: [format_bvh(clip.bvh).encode(clip.bvh.encoding)],
     read_source=lambda clip, path: read_bvh(path),
     posed=_posed_bvh)
 
