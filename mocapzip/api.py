@@ -176,6 +176,12 @@ class Clip:
         return Clip(self._owner, self.index, self._start + start, self._start + max(start, stop), self._whole)
 
     @property
+    def units(self) -> str | None:
+        """The unit of the lengths in the clip's own skeleton as the archive stores it ("cm", "mm", "m",
+        "in"; a BVH hierarchy's, given or inferred at compress), None where its skeleton entry has none."""
+        return self._entry.get("units")
+
+    @property
     def duration(self) -> float:
         """Seconds: `frames` / `fps`."""
         return self.frames / self.fps

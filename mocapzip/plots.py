@@ -47,7 +47,7 @@ def source_positions(clip: mocapzip.Clip, folder: str | os.PathLike) -> np.ndarr
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # a source cut short mid-frame: dropped, as compress did
         if clip.format == "bvh":
-            positions = mocapzip.bvh_joint_positions(mocapzip.read_bvh(path), clip._units)  # as compressed
+            positions = mocapzip.bvh_joint_positions(mocapzip.read_bvh(path), clip.units)  # as compressed
         else:
             positions = mocapzip.joint_positions(clip.skeleton, mocapzip.read_amc(path, clip.skeleton))
     if positions.shape[:2] != (clip.frames, len(clip.joint_names)):
