@@ -81,7 +81,7 @@ def test_a_5kb_tensor_model_claiming_tens_of_millions_of_values_is_refused_befor
                                                           "settings.plant_feet, which this archive has not"),
     (hostile_archives._both(hostile_archives._delete("settings.max_error_cm"),
                             hostile_archives._delete("settings.contact_error_cm")),
-     "meta: clips[0].patched_frames: written only with settings.max_error_cm or contact_error_cm"),
+     "meta: clips[0].patched_frames: written only with settings.max_error_cm, contact_error_cm or vertex_error_cm"),
     (hostile_archives._delete("settings.repair_glitches"), "meta: clips[1].repaired: written only with "
                                                            "settings.repair_glitches"),
     (hostile_archives._set("clips.1.tensor_at", [0]), "meta: clips[1].tensor_at: clip 0's place in its class's grid"),
@@ -141,7 +141,7 @@ def stream_bases(shared_data, tmp_path_factory) -> dict[str, Path]:
 def test_the_bases_hold_what_the_cases_change_and_decode_as_the_spec_says(stream_bases, tmp_path):
     with Archive(stream_bases["plant"]) as plant:
         assert [row["path"] for row in plant.clips] == ["07/07_10.amc", "09/09_03.amc"]
-        assert plant.clips[0]["frames"] == 301 and plant.clips[0]["planted_stances"] == 2
+        assert plant.clips[0]["frames"] == 301 and plant.clips[0]["planted_stances"] >= 2  # stances for the cases to replace
         assert all("patched_frames" in row and "planted_stances" in row for row in plant.clips)
     with Archive(stream_bases["tensor"]) as model:
         (row,) = model.meta["classes"]
