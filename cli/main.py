@@ -206,8 +206,8 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
 @click.option("--max-error", "max_error", metavar="CM|none", callback=max_error_value, default=None,
               help="Also bound every joint of every frame: none ends up further than CM from the source, "
                    "measured end to end through the written AMC (the frames beyond it are patched). Default: "
-                   f"{MAX_TO_MEAN:g} x -e, which removes gross errors (CMU at -e 1: 0.5 % of frames, 4 % more "
-                   "bytes); tighter bounds cost more (5 cm: 41 %; docs/fidelity.md); 'none': no bound.")
+                   f"{MAX_TO_MEAN:g} x -e, which removes gross errors (CMU at -e 1: 0.5 % of frames, 3 % more "
+                   "bytes); tighter bounds cost more (5 cm: 39 %; docs/fidelity.md); 'none': no bound.")
 @click.option("--max-vertex-error", "max_vertex_error", type=click.FloatRange(min=0, min_open=True), metavar="CM",
               help="Also bound every shell vertex of every frame (ACL's error metric: virtual vertices --shell-cm from "
                    "each bone along its axes, in object space; it sees an end bone's twist, which moves no joint): "
