@@ -2,7 +2,7 @@
 scored by ACL's own error metric: virtual vertices 3 cm from every bone, in object space.
 
     python benchmarks/acl.py --acl-compressor BUILD/acl_compressor [--fps 24|120] [--clips N]
-        [--data cmu|bandai|DIR] [--runs E:MAX[:VERTEX],...] [--acl-precision CM,...] [-j N] [--keep DIR]
+        [--data cmu|bandai|DIR] [--runs E:MAX[:VERTEX[:REPRESENTATION]],...] [--acl-precision CM,...] [-j N] [--keep DIR]
 
 Never run in CI: ACL is built by hand, once (nfrechette/acl, MIT; v2.1.0 is the release the
 figures in docs/acl.md come from). Its top-level CMake also builds its unit tests, which need
@@ -298,15 +298,17 @@ def score_acl(args, sources, exported, work: Path, precision_cm: float) -> Score
 
 
 def score_mcz(args, sources, exported, inputs: Path, work: Path, mean_cm: float, max_cm: float | None,
-              vertex_cm: float | None = None) -> Score:
-    """mcz at `-e mean_cm --max-error max_cm [--max-vertex-error vertex_cm]` on the clips under `inputs`,
-    decoded as written."""
+              vertex_cm: float | None = None, representation: str | None = None) -> Score:
+    """mcz at `-e mean_cm --max-error max_cm [--max-vertex-error vertex_cm] [-r representation]` on the
+    clips under `inputs`, decoded as written."""
     archive, decoded_dir = work / "set.mcz", work / "decoded"
     shutil.rmtree(decoded_dir, ignore_errors=True)
     options = {"fps": args.fps} if args.fps else {}
     started = time.perf_counter()
     if vertex_cm is not None:
         options["max_vertex_error"] = vertex_cm
+    if representation is not None:
+        options["representation"] = representation
     summary = mocapzip.compress(inputs, archive, error=mean_cm, max_error=max_cm, jobs=args.jobs, force=True, **options)
     seconds = time.perf_counter() - started
     mocapzip.decompress(archive, decoded_dir)
@@ -326,6 +328,7 @@ def score_mcz(args, sources, exported, inputs: Path, work: Path, mean_cm: float,
         path.unlink()
     setting = f"-e {mean_cm:g} --max-error {'none' if max_cm is None else f'{max_cm:g}'}"
     setting += "" if vertex_cm is None else f" --max-vertex-error {vertex_cm:.4g}"
+    setting += "" if representation is None else f" -r {representation}"
     return Score("mcz", setting, summary["output_bytes"], clips, seconds, agreement)
 
 
@@ -376,9 +379,9 @@ def main(argv=None) -> None:
     parser.add_argument("--data", default="cmu", help="cmu, bandai or a folder of ASF/AMC or BVH clips")
     parser.add_argument("--fps", type=float, help="frame rate to sample the clips at (a divisor of theirs; default theirs)")
     parser.add_argument("--clips", type=int, default=4, help="clips spread over the data set (default 4)")
-    parser.add_argument("--runs", default=RUNS, help="mcz's comma-separated -e:--max-error[:--max-vertex-error] "
+    parser.add_argument("--runs", default=RUNS, help="mcz's comma-separated -e:--max-error[:--max-vertex-error[:-r]] "
                         "settings (MAX 'none': no bound on joints; VERTEX 'acl': ACL's worst vertex at its first "
-                        "precision)")
+                        "precision, '' none; -r a representation, e.g. channels)")
     parser.add_argument("--acl-precision", default=str(ACL_PRECISION_CM), help="ACL's comma-separated precisions (cm)")
     parser.add_argument("-j", "--jobs", type=int, default=1)
     parser.add_argument("--keep", type=Path, help="write the clips, ACL files and archives here and keep them")
@@ -410,12 +413,13 @@ def main(argv=None) -> None:
             print(f"ACL at {precision:g} cm: {scores[-1].bytes:,} bytes", file=sys.stderr, flush=True)
         exported = export_sources(sources, acl_dir, ACL_PRECISION_CM)
         for run in args.runs.split(","):
-            mean_text, max_text, *vertex_text = run.split(":")
+            mean_text, max_text, *rest = run.split(":")
+            vertex_text, representation = (rest + ["", ""])[:2]
             vertex = None
             if vertex_text:  # "acl": ACL's own worst vertex at its first precision, so both meet the same bound
-                vertex = max(c.vertex for c in scores[0].clips) if vertex_text[0] == "acl" else float(vertex_text[0])
+                vertex = max(c.vertex for c in scores[0].clips) if vertex_text == "acl" else float(vertex_text)
             scores.append(score_mcz(args, sources, exported, inputs, work, float(mean_text),
-                                    None if max_text == "none" else float(max_text), vertex))
+                                    None if max_text == "none" else float(max_text), vertex, representation or None))
             print(f"mcz {scores[-1].setting}: {scores[-1].bytes:,} bytes", file=sys.stderr, flush=True)
     print(f"`python benchmarks/acl.py {' '.join(sys.argv[1:] if argv is None else argv)}`: {len(sources)} clips, {frames:,} frames, "
           f"{seconds:.1f} s of motion at {sources[next(iter(sources))].fps:g} fps; {os.cpu_count()} CPUs, "
