@@ -393,6 +393,61 @@ def _orthonormal(x0, x1, x2, y0, y1, y2, out):
 
 
 @njit(cache=True, nogil=True)
+def _length(x0, x1, x2):
+    """np.linalg.norm of one vector along the last axis: (x0^2 + x1^2) + x2^2, as numpy sums three."""
+    return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+
+
+@njit(cache=True, nogil=True)
+def _across_length(x0, x1, x2, y0, y1, y2):
+    """|y less its part along x|, as `positions._across` and np.linalg.norm compute it."""
+    n = max(_length(x0, x1, x2), 1e-300)
+    u0 = x0 / n
+    u1 = x1 / n
+    u2 = x2 / n
+    d = y0 * u0 + y1 * u1 + y2 * u2
+    return _length(y0 - d * u0, y1 - d * u1, y2 - d * u2)
+
+
+@njit(cache=True, nogil=True)
+def directions_clear(poses, parents, pos_col, y_col, x_col, root_ax_col, least):
+    """Whether every direction `MarkerDecoder.check_directions` measures in the unweighted poses
+    (F, M) is at least `least` long (a NaN is not): its numpy code, a quarter of a clip's decode,
+    then runs only to name what is not."""
+    J = parents.shape[0]
+    pos = np.zeros((J, 3))
+    for f in range(poses.shape[0]):
+        for j in range(J):
+            c0 = pos_col[j]
+            for k in range(3):
+                pos[j, k] = 0.0 if c0 < 0 else poses[f, c0 + k]
+        for j in range(1, J):
+            xc = x_col[j]
+            if xc >= 0:
+                x0 = poses[f, xc]
+                x1 = poses[f, xc + 1]
+                x2 = poses[f, xc + 2]
+            else:
+                p = parents[j]
+                x0 = pos[j, 0] - pos[p, 0]
+                x1 = pos[j, 1] - pos[p, 1]
+                x2 = pos[j, 2] - pos[p, 2]
+            if not _length(x0, x1, x2) >= least:
+                return False
+            yc = y_col[j]
+            if yc >= 0 and not _across_length(x0, x1, x2, poses[f, yc], poses[f, yc + 1], poses[f, yc + 2]) >= least:
+                return False
+        if root_ax_col >= 0:
+            rc = root_ax_col
+            if not _length(poses[f, rc], poses[f, rc + 1], poses[f, rc + 2]) >= least:
+                return False
+            if not _across_length(poses[f, rc], poses[f, rc + 1], poses[f, rc + 2],
+                                  poses[f, rc + 3], poses[f, rc + 4], poses[f, rc + 5]) >= least:
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
 def markers_to_channels(poses, weights, root, with_root,
                         parents, faux, pos_col, y_col, x_col, root_ax_col, root_proxy,
                         solved, sol_u, sol_nrot, sol_a0, sol_a1, sol_radius, sol_phase, sol_ref,
