@@ -34,7 +34,8 @@ which holds its own copy of these functions: after changing them, delete
 the cache files (`find mocapzip -name '*.nb[ic]' -delete`).
 
 `Encoder` and `Decoder` hold that state for callers in Python: `coefficients`
-passes it on to its compiled loops; `bit` and `direct` code one decision.
+passes it on to its compiled loops; `bit` and `direct` code one decision, `Decoder.exp_golomb` one
+integer of `archive.skeletons`.
 """
 
 import numba
