@@ -24,7 +24,8 @@ from mocapzip.motion.metrics import joint_distances
 from mocapzip import stages
 from mocapzip.representations import Aligned, Encoded, Representation
 from mocapzip.representations.aligned import position_columns
-from mocapzip.representations.positions import MarkerDecoder, flips_from_ranges, flip_ranges, true_twists
+from mocapzip.representations.positions import (DegeneratePose, MarkerDecoder, _across, flips_from_ranges,
+                                                flip_ranges, true_twists)
 from mocapzip.representations.weighted import channels_from_weighted
 from mocapzip.stages import stage_ids
 
@@ -139,6 +140,56 @@ def test_decoder_follows_the_stored_flips(shared_data, name):
     numpy_decoded = clip.representation.inverse(
         clip.model, type(clip.encoded)(poses / clip.weights, root, params), clip.layout)
     np.testing.assert_allclose(decoded, numpy_decoded, rtol=0, atol=VALUES_TOLERANCE)
+
+
+def test_direction_lengths_are_numpys():
+    """The lengths `compiled.directions_clear` compares, bit for bit those of `check_directions`."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(2000, 3)) * 10.0 ** rng.uniform(-8, 12, (2000, 1))
+    y = rng.normal(size=(2000, 3))
+    lengths = np.array([compiled._length(*v) for v in x])
+    across = np.array([compiled._across_length(*u, *v) for u, v in zip(x, y)])
+    np.testing.assert_array_equal(lengths, np.linalg.norm(x, axis=-1))
+    np.testing.assert_array_equal(across, np.linalg.norm(_across(x, y), axis=-1))
+
+
+@pytest.mark.parametrize("name", sorted(CLIPS))
+@pytest.mark.parametrize("axes_from_positions", [True, False])
+def test_the_compiled_direction_check_refuses_what_numpy_refuses(shared_data, name, axes_from_positions,
+                                                                 monkeypatch):
+    """`compiled.directions_clear` stands in for `check_directions`' numpy code: poses shrunk until
+    their shortest direction is MIN_DIRECTION, then by one part in 2**52 at a time across it, pass
+    or fail both the same."""
+    clip = load(shared_data, name, "aligned", axes_from_positions, frames=40)
+    decoder, kernel = clip.decode_tail.decoder, compiled.directions_clear
+
+    def refused(poses, compiled_check) -> bool:
+        monkeypatch.setattr(compiled, "directions_clear", compiled_check)
+        try:
+            decoder.check_directions(poses)
+        except DegeneratePose:
+            return True
+        return False
+
+    def numpy_refuses(poses) -> bool:
+        return refused(poses, lambda *args: False)  # the kernel says "look": numpy decides
+
+    def compiled_refuses(poses) -> bool:
+        clear = []
+        refused(poses, lambda *args: clear.append(kernel(*args)) or True)  # the kernel's verdict, numpy skipped
+        return not clear[0]
+
+    low, high = 0.0, 1.0  # the scale at which numpy starts to refuse, by bisection
+    for _ in range(1100):
+        if high - low <= high * 2.0**-53:
+            break
+        middle = (low + high) / 2
+        low, high = (low, middle) if not numpy_refuses(clip.poses * middle) else (middle, high)
+    outcomes = [(compiled_refuses(clip.poses * scale), numpy_refuses(clip.poses * scale))
+                for scale in high * (1 + np.arange(-20, 21) * 2.0**-52)]
+    assert {numpy for _, numpy in outcomes} == {True, False}  # the threshold was crossed
+    assert all(ours == numpy for ours, numpy in outcomes), outcomes
+    assert not compiled_refuses(clip.poses) and compiled_refuses(clip.poses * 0)
 
 
 # --------------------------------------------------------------------------- a representation registered here

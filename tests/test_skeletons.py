@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from mocapzip.archive import skeletons
 from mocapzip.archive.skeletons import (TEMPLATES_AND_NUMBERS, WHOLE_TEXTS, decode_skeletons, encode_skeletons,
                                         join_numbers, split_numbers)
+from mocapzip.codec.entropy.rangecoder import Decoder, Encoder, new_models
 from mocapzip.formats.bvh import read_hierarchy
 from reference_decoder.skeletons import read_skeletons as reference_read
 
@@ -93,6 +94,21 @@ TOKENS = st.one_of(st.sampled_from([" ", "\n", "\r\n", "(", ")", "direction", "l
        st.lists(st.booleans(), min_size=4, max_size=4))
 def test_any_text_comes_back(texts, is_asf):
     round_trip(texts, is_asf[:len(texts)])
+
+
+def test_integers_of_every_length_come_back():
+    """The compiled decode of `_put_int`'s code (`Decoder.exp_golomb`), across its 32-bit chunks."""
+    values = [0, 1, -1, 2, -3, 2**31, -(2**32 + 5), 2**63 + 1, -(2**64), 3**85, -(2**135 + 2**70 + 1)]
+    encoder, models = Encoder(), new_models(2 + skeletons._BIT_LENGTHS)
+    for value in values:
+        skeletons._put_int(encoder, models, value)
+    stream = encoder.finish()
+    decoder, models = Decoder(stream), new_models(2 + skeletons._BIT_LENGTHS)
+    assert [skeletons._get_int(decoder, models) for _ in values] == values
+    decoder.finish()
+    decoder, models = Decoder(stream[:len(stream) // 2]), new_models(2 + skeletons._BIT_LENGTHS)
+    with pytest.raises(ValueError, match="ends early"):
+        [skeletons._get_int(decoder, models) for _ in values]
 
 
 def test_texts_that_cannot_be_templates_are_stored_whole(monkeypatch):

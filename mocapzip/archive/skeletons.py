@@ -167,7 +167,8 @@ def _candidates(template: bytes, earlier: list[_Reference]) -> list[_Reference]:
 
 
 def _context(hint: int) -> int:
-    return sum(hint > limit for limit in _HINT_LIMITS)
+    low, middle, high = _HINT_LIMITS  # unrolled: this runs for every number
+    return (hint > low) + (hint > middle) + (hint > high)
 
 
 def _scaled(mantissa: int, from_scale: int, to_scale: int) -> int:
@@ -231,19 +232,7 @@ def _put_int(encoder: Encoder, models, value: int) -> None:
 
 
 def _get_int(decoder: Decoder, models) -> int:
-    if not decoder.bit(models, 0):
-        return 0
-    negative = decoder.bit(models, 1)
-    length = 1
-    while length < _BIT_LENGTHS and decoder.bit(models, 1 + length):
-        length += 1
-    rest, bits = 0, length - 1
-    while bits > 0:
-        take = min(bits, 32)
-        bits -= take
-        rest = (rest << take) | decoder.direct(take)
-    magnitude = (1 << (length - 1)) + rest
-    return -magnitude if negative else magnitude
+    return decoder.exp_golomb(models, _BIT_LENGTHS)
 
 
 class _Coder:

@@ -254,7 +254,25 @@ def np_sum(a):
 # ----------------------------------------------------------------------------- euler fits
 
 @njit(cache=True, nogil=True)
-def _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res, m):
+def _angle_about_product(k, ra, rb, m):
+    """_angle_about_m(k, (ra @ rb)^T @ m), of the four entries it reads only, each summed as _mm and _mtm sum it."""
+    b = (k + 1) % 3
+    c = (k + 2) % 3
+    pb0 = ra[0, 0] * rb[0, b] + ra[0, 1] * rb[1, b] + ra[0, 2] * rb[2, b]
+    pb1 = ra[1, 0] * rb[0, b] + ra[1, 1] * rb[1, b] + ra[1, 2] * rb[2, b]
+    pb2 = ra[2, 0] * rb[0, b] + ra[2, 1] * rb[1, b] + ra[2, 2] * rb[2, b]
+    pc0 = ra[0, 0] * rb[0, c] + ra[0, 1] * rb[1, c] + ra[0, 2] * rb[2, c]
+    pc1 = ra[1, 0] * rb[0, c] + ra[1, 1] * rb[1, c] + ra[1, 2] * rb[2, c]
+    pc2 = ra[2, 0] * rb[0, c] + ra[2, 1] * rb[1, c] + ra[2, 2] * rb[2, c]
+    r_bc = pb0 * m[0, c] + pb1 * m[1, c] + pb2 * m[2, c]
+    r_cb = pc0 * m[0, b] + pc1 * m[1, b] + pc2 * m[2, b]
+    r_bb = pb0 * m[0, b] + pb1 * m[1, b] + pb2 * m[2, b]
+    r_cc = pc0 * m[0, c] + pc1 * m[1, c] + pc2 * m[2, c]
+    return math.atan2(r_bc - r_cb, r_bb + r_cc)
+
+
+@njit(cache=True, nogil=True)
+def _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, m):
     """rotations._tait_bryan over frames (gimbal-locked frames carry the latest unlocked first angle)."""
     sign = 1.0 if (b - a) % 3 == 1 else -1.0
     have_free = False
@@ -271,21 +289,19 @@ def _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res, m):
             free_first = fi
         _axis_rot(a, fi, ra)
         _axis_rot(b, mi, rb)
-        _mm(ra, rb, rp)
-        _mtm(rp, m, res)
         first[f] = fi
         middle[f] = mi
-        last[f] = _angle_about_m(c, res)
+        last[f] = _angle_about_product(c, ra, rb, m)
 
 
 @njit(cache=True, nogil=True)
-def _euler3(locals_j, a, b, c, out_angles, work, ra, rb, rp, res, m):
+def _euler3(locals_j, a, b, c, out_angles, work, ra, rb, m):
     """rotations.euler_angles for 3 axes: _tait_bryan, _continuous (branch parity), np.unwrap."""
     n = locals_j.shape[0]
     first = work[0]
     middle = work[1]
     last = work[2]
-    _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, rp, res, m)
+    _tait_bryan_all(locals_j, a, b, c, first, middle, last, ra, rb, m)
     parity = False
     for f in range(n):
         if f > 0:
@@ -312,7 +328,7 @@ def _euler3(locals_j, a, b, c, out_angles, work, ra, rb, rp, res, m):
 
 
 @njit(cache=True, nogil=True)
-def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res, m):
+def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, res, m):
     """rotations.euler_angles for 2 axes: _two_axis_fit (all frames iterate together, as the
     numpy code's global stopping test does), then np.unwrap."""
     n = locals_j.shape[0]
@@ -320,7 +336,7 @@ def _euler2(locals_j, a0, a1, out_angles, work, ra, rb, rp, res, m):
     first = out_angles[0]
     second = out_angles[1]
     third = work[2]
-    _tait_bryan_all(locals_j, a0, a1, missing, first, second, third, ra, rb, rp, res, m)
+    _tait_bryan_all(locals_j, a0, a1, missing, first, second, third, ra, rb, m)
     for f in range(n):
         if abs(_wrap(third[f] + PI)) < abs(_wrap(third[f])):
             first[f] = first[f] + PI
@@ -390,6 +406,61 @@ def _orthonormal(x0, x1, x2, y0, y1, y2, out):
     out[2, 0] = x1 * y2 - x2 * y1
     out[2, 1] = x2 * y0 - x0 * y2
     out[2, 2] = x0 * y1 - x1 * y0
+
+
+@njit(cache=True, nogil=True)
+def _length(x0, x1, x2):
+    """np.linalg.norm of one vector along the last axis: (x0^2 + x1^2) + x2^2, as numpy sums three."""
+    return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+
+
+@njit(cache=True, nogil=True)
+def _across_length(x0, x1, x2, y0, y1, y2):
+    """|y less its part along x|, as `positions._across` and np.linalg.norm compute it."""
+    n = max(_length(x0, x1, x2), 1e-300)
+    u0 = x0 / n
+    u1 = x1 / n
+    u2 = x2 / n
+    d = y0 * u0 + y1 * u1 + y2 * u2
+    return _length(y0 - d * u0, y1 - d * u1, y2 - d * u2)
+
+
+@njit(cache=True, nogil=True)
+def directions_clear(poses, parents, pos_col, y_col, x_col, root_ax_col, least):
+    """Whether every direction `MarkerDecoder.check_directions` measures in the unweighted poses
+    (F, M) is at least `least` long (a NaN is not): its numpy code, a quarter of a clip's decode,
+    then runs only to name what is not."""
+    J = parents.shape[0]
+    pos = np.zeros((J, 3))
+    for f in range(poses.shape[0]):
+        for j in range(J):
+            c0 = pos_col[j]
+            for k in range(3):
+                pos[j, k] = 0.0 if c0 < 0 else poses[f, c0 + k]
+        for j in range(1, J):
+            xc = x_col[j]
+            if xc >= 0:
+                x0 = poses[f, xc]
+                x1 = poses[f, xc + 1]
+                x2 = poses[f, xc + 2]
+            else:
+                p = parents[j]
+                x0 = pos[j, 0] - pos[p, 0]
+                x1 = pos[j, 1] - pos[p, 1]
+                x2 = pos[j, 2] - pos[p, 2]
+            if not _length(x0, x1, x2) >= least:
+                return False
+            yc = y_col[j]
+            if yc >= 0 and not _across_length(x0, x1, x2, poses[f, yc], poses[f, yc + 1], poses[f, yc + 2]) >= least:
+                return False
+        if root_ax_col >= 0:
+            rc = root_ax_col
+            if not _length(poses[f, rc], poses[f, rc + 1], poses[f, rc + 2]) >= least:
+                return False
+            if not _across_length(poses[f, rc], poses[f, rc + 1], poses[f, rc + 2],
+                                  poses[f, rc + 3], poses[f, rc + 4], poses[f, rc + 5]) >= least:
+                return False
+    return True
 
 
 @njit(cache=True, nogil=True)
@@ -531,10 +602,10 @@ def markers_to_channels(poses, weights, root, with_root,
                 v_c = u0 * sa1[0, c2_] + u1 * sa1[1, c2_] + u2 * sa1[2, c2_]
                 r1 = _wrap(at - math.atan2(v_c, v_b))
                 other = max(abs(s1), abs(r1)) < max(abs(s0), abs(r0))
-                _axis_rot(a2, r0, sb0)
-                _axis_rot(a2, r1, sb1)
                 ri = sol_ref[j]
                 if use_ref:
+                    _axis_rot(a2, r0, sb0)
+                    _axis_rot(a2, r1, sb1)
                     _mm(sa0, sb0, sol0)
                     _mm(sa1, sb1, sol1)
                     n0 = 0.0
@@ -554,8 +625,10 @@ def markers_to_channels(poses, weights, root, with_root,
                         other = other != flips_in[ri, f]
                         flips_out[ri, f] = flips_in[ri, f]
                     if other:
+                        _axis_rot(a2, r1, sb1)
                         _mm(sa1, sb1, t3)
                     else:
+                        _axis_rot(a2, r0, sb0)
                         _mm(sa0, sb0, t3)
             # R_j = ((C^T @ local) @ C) @ R_p
             _mtm(c_j, t3, t1)
@@ -621,9 +694,9 @@ def markers_to_channels(poses, weights, root, with_root,
             continue
         lj = locals_[(j - j_lo) * F:(j - j_lo + 1) * F]
         if n == 3:
-            _euler3(lj, rot_axes[j, 0], rot_axes[j, 1], rot_axes[j, 2], angles, work, sa, sb, t1, t2, m)
+            _euler3(lj, rot_axes[j, 0], rot_axes[j, 1], rot_axes[j, 2], angles, work, sa, sb, m)
         elif n == 2:
-            _euler2(lj, rot_axes[j, 0], rot_axes[j, 1], angles, work, sa, sb, t1, t2, m)
+            _euler2(lj, rot_axes[j, 0], rot_axes[j, 1], angles, work, sa, sb, t2, m)
         else:
             _euler1(lj, rot_axes[j, 0], angles, m)
         for i in range(n):

@@ -350,6 +350,9 @@ class MarkerDecoder(PoseDecoder):
         poses = np.asarray(weighted_poses, dtype=np.float64) / self.weights
         if self.to_markers is not None:
             poses = self.to_markers(poses)
+        if compiled.directions_clear(np.ascontiguousarray(poses), self.tables.parents, self.position_column,
+                                     self.y_column, self.x_column, self.root_axes_column, MIN_DIRECTION):
+            return
         model = self.tables.model
         positions = np.zeros((len(poses), model.n_joints, 3))
         placed = self.position_column >= 0

@@ -34,14 +34,15 @@ which holds its own copy of these functions: after changing them, delete
 the cache files (`find mocapzip -name '*.nb[ic]' -delete`).
 
 `Encoder` and `Decoder` hold that state for callers in Python: `coefficients`
-passes it on to its compiled loops; `bit` and `direct` code one decision.
+passes it on to its compiled loops; `bit` and `direct` code one decision, `Decoder.exp_golomb` one
+integer of `archive.skeletons`.
 """
 
 import numba
 import numpy as np
 
 __all__ = ["Encoder", "Decoder", "new_models", "reserve", "encode_bit", "encode_direct", "decode_bit", "decode_direct",
-           "exhausted"]
+           "decode_exp_golomb", "exhausted"]
 
 _PROB_BITS = 11
 _ONE = 1 << _PROB_BITS
@@ -206,6 +207,29 @@ def decode_direct(state, data, n_bits):
 
 
 @numba.njit(cache=True, nogil=True)
+def decode_exp_golomb(state, data, models, max_length, chunks):
+    """An integer in the adaptive Exp-Golomb code of `archive.skeletons` (models[0]: is it 0,
+    [1]: its sign, [2:]: its bit length in unary up to `max_length`; then its bits below the
+    leading one direct, 32 at most at a time): its bit length, negated if it is negative (0 for
+    0), and those bits in `chunks` as they came.  Why compiled: a skeletons stream holds some
+    thousands of them, and a decision at a time from Python cost a call each."""
+    if not decode_bit(state, data, models, 0):
+        return 0
+    negative = decode_bit(state, data, models, 1)
+    length = 1
+    while length < max_length and decode_bit(state, data, models, 1 + length):
+        length += 1
+    bits = length - 1
+    i = 0
+    while bits > 0:
+        take = min(bits, 32)
+        bits -= take
+        chunks[i] = decode_direct(state, data, take)
+        i += 1
+    return -length if negative else length
+
+
+@numba.njit(cache=True, nogil=True)
 def exhausted(state):
     """Whether the decoder needed a byte past the end of its stream (what it decoded since is void)."""
     return state[_EXHAUSTED] != 0
@@ -225,6 +249,7 @@ class Decoder:
         self.state[_DECODER_RANGE] = _MASK32
         self.state[_POSITION] = 4
         self.state[_DECODER_SHIFT] = shift
+        self._chunks = np.zeros(0, np.int64)  # exp_golomb's direct bits
 
     def bit(self, models: np.ndarray, index: int) -> int:
         bit = decode_bit(self.state, self.data, models, index)
@@ -235,6 +260,22 @@ class Decoder:
         value = decode_direct(self.state, self.data, n_bits)
         self.check_not_exhausted()
         return value
+
+    def exp_golomb(self, models: np.ndarray, max_length: int) -> int:
+        """An integer as `decode_exp_golomb` reads it, of at most `max_length` bits."""
+        if self._chunks.size < (max_length + 30) // 32:
+            self._chunks = np.zeros((max_length + 30) // 32, np.int64)
+        length = decode_exp_golomb(self.state, self.data, models, max_length, self._chunks)
+        self.check_not_exhausted()
+        bits, rest = abs(length) - 1, 0
+        for chunk in self._chunks.tolist():
+            if bits <= 0:
+                break
+            take = min(bits, 32)
+            bits -= take
+            rest = (rest << take) | chunk
+        magnitude = (1 << (abs(length) - 1)) + rest if length else 0
+        return -magnitude if length < 0 else magnitude
 
     def check_not_exhausted(self) -> None:
         if self.state[_EXHAUSTED]:
