@@ -14,6 +14,7 @@ import math
 import fastjsonschema
 import pywt
 
+from mocapzip.archive.settings import MAX_ERROR_CM
 from mocapzip.classes.modes import MAX_PATTERN_CHARS, compiled_modes
 from mocapzip.codec.segments import coded_range
 from mocapzip.formats.amc import MAX_FRAME_NUMBER
@@ -115,7 +116,7 @@ _SETTINGS = record(
         "max_error_cm": _POSITIVE,
         "contact_error_cm": _POSITIVE,  # format 6 on
         "vertex_error_cm": _POSITIVE,  # format 13 on
-        "shell_cm": {"type": "number", "minimum": 0, "maximum": 1e6},  # format 13 on; absent: 3
+        "shell_cm": {"type": "number", "minimum": 0, "maximum": MAX_ERROR_CM},  # format 13 on; absent: 3
         "repair_glitches": {"type": "boolean"},  # format 6 on
         "plant_feet": {"type": "boolean"},  # format 9 on
         "fps_from_files": {"type": "boolean"},  # format 7 on; absent: true

@@ -121,12 +121,13 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
             raise _unbounded(clip, f"frame {int(bad[pending[0]])} needs a patch larger than patches hold") from None
         patched = clip.as_written(values[bad[pending]] + ints[pending] * row_steps)  # as FramePatches.apply adds them
         after = tail.joint_distances(patched, original[bad[pending]])
-        vertex_after = tail.shell_distances(patched, source[bad[pending]], bounds.shell_cm)
-        vertex_beyond = (vertex_after > vertex_limit) & vertex_held[pending]
+        vertex_beyond = np.zeros((len(pending), len(bones.names)), bool)  # scored only against a bound
+        if bounds.vertex_error_cm is not None:
+            vertex_after = tail.shell_distances(patched, source[bad[pending]], bounds.shell_cm)
+            vertex_beyond = (vertex_after > vertex_limit) & vertex_held[pending]
         passed = np.all(after <= limit[pending], axis=1) & ~vertex_beyond.any(axis=1) & (
             (after * held[pending]).sum(axis=1) <= (before[pending] * held[pending]).sum(axis=1))
         distances[bad[pending[passed]]] = after[passed]
-        vertices[bad[pending[passed]]] = vertex_after[passed]
         failed, after, vertex_beyond = pending[~passed], after[~passed], vertex_beyond[~passed]
         # a joint beyond its bound or worse than before, or a bone beyond its bound, adds its chain;
         # with nothing to add, a finer level
@@ -140,6 +141,8 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     patched = values.copy()
     patches.apply(patched, steps)
     _check_range(clip, patched)
+    # the patched frames' vertices, scored once on what is written
+    vertices[bad] = tail.shell_distances(clip.as_written(patched[bad]), source[bad], bounds.shell_cm)
     return _with_repairs(distances, repaired, clip, vertices), patches
 
 
