@@ -34,7 +34,7 @@ from mocapzip.ratecontrol.target import Bounds
 PATCH_DEAD_ZONE = 0.45  # small residuals left out: a frame then passes at a finer level with fewer values
 # A clip whose patches take more than PATCH_SHARE of its bytes is coded again with its mean aim LOWERED:
 # a finer coding leaves fewer frames to patch (it pays at tight bounds, 3 cm and below at -e 1).
-PATCH_SHARE = 0.15
+PATCH_SHARE = 0.3
 LOWERED = 0.75
 MAX_LOWERINGS = 4
 
@@ -93,7 +93,7 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     steps = channel_steps(clip.model, clip.layout)
     step_cm = float(np.float32(next(b for b in (bounds.max_error_cm, bounds.contact_error_cm, bounds.vertex_error_cm)
                                     if b is not None)))
-    residual = source[bad] - values[bad]
+    residual = _turns_removed(source[bad] - values[bad], clip)
     chains = _chain_channels(clip)
     bone_chains = chains[bones.rotation_of] | chains[bones.origin_at]  # (B, channels)
     before, limit = distances[bad], limits[bad]
@@ -109,6 +109,9 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     levels = np.maximum(0, np.ceil(np.log2(step_cm / tightest) - 1e-6)).astype(np.int64)
     ints = np.zeros(residual.shape, np.int64)
     pending = np.arange(len(bad))
+    least = bounds.vertex_error_cm is None  # vertices see the twist that a joint's least correction leaves
+    if least:
+        residual = _least_corrections(tail, values[bad], original[bad], corrected, held, steps, residual, limit, before)
     while pending.size:
         if levels[pending].max() > MAX_LEVEL:
             frame = int(bad[pending[np.argmax(levels[pending])]])
@@ -135,6 +138,11 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
         wider = corrected[failed] | ((worse.astype(np.int64) @ chains + vertex_beyond.astype(np.int64) @ bone_chains) > 0)
         finer = np.all(wider == corrected[failed], axis=1)
         corrected[failed] = wider
+        if least and not finer.all():
+            grown = failed[~finer]
+            residual[grown] = _least_corrections(tail, values[bad[grown]], original[bad[grown]], corrected[grown],
+                                                 held[grown], steps, _turns_removed(source[bad[grown]] - values[bad[grown]], clip),
+                                                 limit[grown], before[grown])
         levels[failed[finer]] += 1
         pending = failed
     patches = FramePatches(step_cm, bad, levels, ints)
@@ -144,6 +152,44 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
     # the patched frames' vertices, scored once on what is written
     vertices[bad] = tail.shell_distances(clip.as_written(patched[bad]), source[bad], bounds.shell_cm)
     return _with_repairs(distances, repaired, clip, vertices), patches
+
+
+def _turns_removed(residual: np.ndarray, clip) -> np.ndarray:
+    """`residual` less the whole turns in its rotation channels: an angle and that angle plus 360
+    degrees turn a bone alike, and sources store angles up to 990 degrees (cmu/01/01_09)."""
+    layout, model = clip.layout, clip.model
+    turn = 360.0 if layout.angle_unit == "deg" else 2 * np.pi
+    rotations = np.array([channel.startswith("r") for bone, count in zip(layout.bones, layout.counts)
+                          for channel in model.channels[model.index[bone]][:count]], bool)
+    residual[:, rotations] -= turn * np.round(residual[:, rotations] / turn)
+    return residual
+
+
+def _least_corrections(tail, values, original, free, held, steps, exact, limit, before, iterations: int = 3):
+    """(P, C) corrections of the frames' channel `values`, in their `free` channels only, that move
+    their `held` joints onto `original` with the least change, counted in patch steps (`steps`):
+    damped Gauss-Newton on forward kinematics. A joint's position leaves a bone's twist about
+    itself and an Euler triple's other branch free; the source's values (`exact`) spend patch
+    bits on both. A frame whose correction does not bring every joint within `limit` without
+    raising its summed error keeps `exact`, which can always reach the source."""
+    count, width = values.shape
+    delta = np.zeros_like(values)
+    weight = np.repeat(held.astype(np.float64), 3, axis=1)  # (P, 3J)
+    probe = 1e-3
+    for _ in range(iterations):
+        current = values + delta
+        at = tail.positions(current).reshape(count, -1)
+        residual = (original.reshape(count, -1) - at) * weight
+        shifted = np.repeat(current[:, None, :], width, axis=1)
+        shifted[:, np.arange(width), np.arange(width)] += probe * steps
+        moved = tail.positions(shifted.reshape(-1, width)).reshape(count, width, -1)
+        jacobian = (moved - at[:, None, :]) / probe * weight[:, None, :] * free[:, :, None]  # (P, C, 3J): per step
+        normal = jacobian @ jacobian.transpose(0, 2, 1) + 1e-2 * np.eye(width)
+        change = np.linalg.solve(normal, (jacobian @ residual[:, :, None]))[:, :, 0]
+        delta += change * steps * free
+    after = tail.joint_distances(values + delta, original)
+    good = np.all(after <= limit, axis=1) & ((after * held).sum(axis=1) <= (before * held).sum(axis=1))
+    return np.where(good[:, None], delta, exact)
 
 
 def _check_range(clip, values: np.ndarray) -> None:
