@@ -3,10 +3,11 @@
 A clip's coding bounds its mean error. A few frames keep a joint further off: fast events
 (impacts, foot strikes) that the kept band smooths over, and glitches in the source that
 the decoder cannot guess. For those frames alone the archive stores a correction of the
-decoded AMC channel values: the residual, original minus decoded, rounded to a multiple of
-the frame's step. The step halves with each refinement level, so the encoder raises a
-frame's level until the frame passes (`ratecontrol.max_error`), and any frame can reach its
-original values exactly.
+decoded AMC channel values, rounded to a multiple of the frame's step: the least change that
+puts the frame's joints where the source has them (`ratecontrol.max_error`), or, where that
+does not pass, the residual, original minus decoded. The step halves with each refinement
+level, so the encoder raises a frame's level until the frame passes, and any frame can reach
+its original values exactly.
 
 Steps are in cm of joint movement: a translation channel's is `step_cm` in the file's length
 unit, a rotation channel's is `step_cm / LEVER_CM` radians (in the clip's angle unit), the
