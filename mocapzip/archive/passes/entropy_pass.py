@@ -18,8 +18,8 @@ class StoredClips:
 
 
 def entropy_pass(coded: CodedClasses, chain: dict[str, dict], jobs: int = 1) -> StoredClips:
-    """The clip streams as stored, with the coefficient coder of `chain` (`Settings.chain`; lossy:
-    nothing for a lossless archive, whose chain has no such coder and whose clips the first pass coded)."""
+    """The clip streams as stored, coded with `chain`'s coefficient coder (`Settings.chain`). A lossless
+    chain has none: the first pass coded its clips, and nothing is stored here."""
     if "coefficient coder" not in chain:
         return StoredClips(None, {})
     return StoredClips(*stored_streams(coded.interim, chain["coefficient coder"]["id"], jobs))
