@@ -176,19 +176,21 @@ main(sys.argv[2:])
 def test_an_append_killed_leaves_the_archive_as_it_was(original, tmp_path, shared_data, when):
     """Killed while the new clips are coded, the new archive's streams wait in an unnamed file: nothing
     is left beside the archive. Killed while the new archive is written, its temporary file is left
-    (docs/editing.md), never in the archive's place."""
+    (docs/editing.md), never in the archive's place, and the next write to the archive removes it."""
     folder = tmp_path / "db"
     folder.mkdir()
     archive = folder / "a.mcz"
     archive.write_bytes(original.read_bytes())
     new = linked(tmp_path / "new", shared_data, NEW)
-    child = subprocess.run([sys.executable, "-c", KILLED_CHILD, when, "append", os.fspath(archive), os.fspath(new),
-                            "-f", "-q", "-j", "1"], env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
-                           capture_output=True, timeout=300)
-    assert child.returncode == -signal.SIGKILL
+    child = subprocess.Popen([sys.executable, "-c", KILLED_CHILD, when, "append", os.fspath(archive), os.fspath(new),
+                              "-f", "-q", "-j", "1"], env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    assert child.wait(timeout=300) == -signal.SIGKILL
     left = _listing(folder)
     assert left.pop("a.mcz") == original.read_bytes()
-    assert [name.startswith(".a.mcz.tmp-") for name in left] == ([] if when == "coding" else [True])
+    assert [name.startswith(f".a.mcz.tmp-{child.pid}-") for name in left] == ([] if when == "coding" else [True])
+    assert run("remove", archive, "09_01.amc", "-f", "-q").exit_code == 0
+    assert list(_listing(folder)) == ["a.mcz"]
 
 
 @pytest.mark.parametrize("arguments, said", [
@@ -216,3 +218,4 @@ def test_an_archive_edited_in_place_only_with_force(original, tmp_path):
     assert result.exit_code == 2
     assert result.stderr == ("mcz remove: name the new archive with -o, or give -f to replace ARCHIVE in place "
                              "(see mcz remove --help)\n")
+
