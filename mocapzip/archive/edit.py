@@ -123,7 +123,7 @@ def stored_folder(under: str) -> str:
     """`under` as the folder of stored paths: relative, no '.' or '..' (meta's checks say the rest at the write)."""
     parts = PurePosixPath(under).parts
     if not parts or under.startswith("/") or any(part in (".", "..") for part in under.split("/")):
-        raise ValueError(f"--under must be a relative folder without '.' or '..', got {under!r}")
+        raise ValueError(f"under must be a relative folder without '.' or '..', got {under!r}")
     return "/".join(parts)
 
 
