@@ -613,7 +613,7 @@ def _stored_folder(ctx, param, value):
         try:
             stored_folder(value)
         except ValueError as exc:
-            raise click.BadParameter(str(exc).removeprefix("--under "), ctx, param) from None
+            raise click.BadParameter(str(exc).removeprefix("under "), ctx, param) from None
     return value
 
 

@@ -19,6 +19,7 @@ import io
 import itertools
 import json
 import os
+import re
 import secrets
 import stat
 import tempfile
@@ -29,6 +30,9 @@ from contextlib import contextmanager
 import h5py
 import numpy as np
 from h5py import h5d, h5p, h5t, h5z
+
+if os.name == "posix":
+    import fcntl
 
 from mocapzip.legacy import Format, container, format_of
 from mocapzip.limits import MAX_DECODED_STREAM_BYTES
@@ -65,22 +69,26 @@ def write_archive(
     (format 10 on; readers never rely on it).
 
     The file is built under a temporary name in the same directory, fsynced, then renamed over
-    `path`, so readers never see half an archive and a failure leaves nothing behind.
+    `path`, so readers never see half an archive and a failure leaves nothing behind. A writer
+    killed outright leaves its temporary file: the next write to `path` deletes it
+    (`_remove_stale_temporaries`).
     """
     path = os.fspath(path)
     _check_target(path, tool_version, overwrite)
     directory = os.path.dirname(os.path.abspath(path))
-    tmp = os.path.join(directory, f".{os.path.basename(path)}.tmp-{secrets.token_hex(6)}")
+    _remove_stale_temporaries(path)
+    tmp = os.path.join(directory, f"{_temporary_prefix(path)}{os.getpid()}-{secrets.token_hex(6)}")
     with _failures_naming(path):
         file = _HDF5Output(tmp, "x+")  # O_EXCL: never opens an existing name, nor follows a planted symlink
         try:
-            with file:
-                _write_hdf5(file, streams, tool_version, contents)
-                if file.error:
-                    raise file.error
-                os.fsync(file.fileno())
-            _check_target(path, tool_version, overwrite)  # again: the target may have appeared meanwhile
-            os.replace(tmp, path)
+            with _held_until_renamed(file):
+                with file:
+                    _write_hdf5(file, streams, tool_version, contents)
+                    if file.error:
+                        raise file.error
+                    os.fsync(file.fileno())
+                _check_target(path, tool_version, overwrite)  # again: the target may have appeared meanwhile
+                os.replace(tmp, path)
         except BaseException:  # also KeyboardInterrupt/SystemExit: never leave a temporary file
             os.unlink(tmp)
             raise
@@ -91,6 +99,74 @@ def write_archive(
         finally:
             os.close(fd)
     return os.path.getsize(path)
+
+
+def _temporary_prefix(path: str) -> str:
+    """`write_archive`'s temporary files for `path` are named this, then the writer's PID, "-" and 12 hex digits."""
+    return f".{os.path.basename(path)}.tmp-"
+
+
+@contextmanager
+def _held_until_renamed(file: io.FileIO) -> Iterator[None]:
+    """An exclusive lock on the temporary `file`, held on a descriptor of its own until the block
+    ends (after the rename): while it is held, `_remove_stale_temporaries` leaves the file alone.
+    The kernel drops it when the process dies, however it dies (POSIX; elsewhere no lock, no clean-up)."""
+    if os.name != "posix":
+        yield
+        return
+    held = os.dup(file.fileno())  # the same open file: the lock outlives `file`'s close
+    try:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(held)
+
+
+def _remove_stale_temporaries(path: str) -> None:
+    """Delete the temporary files a write to `path` left when it was killed outright (SIGKILL: no
+    clean-up ran, docs/format_notes.md), and only those: named as `write_archive` names them,
+    regular files of this user, whose writer's PID is no process here, and whose writer's lock
+    (`_held_until_renamed`) is free, which also guards a writer in another PID namespace or on
+    another NFS client. Whatever cannot be checked is left."""
+    if os.name != "posix":
+        return
+    directory, prefix = os.path.dirname(os.path.abspath(path)), _temporary_prefix(path)
+    try:
+        names = [name for name in os.listdir(directory) if name.startswith(prefix)]
+    except OSError:
+        return
+    for name in names:
+        owner = re.fullmatch(r"([1-9][0-9]{0,9})-[0-9a-f]{12}", name[len(prefix):])
+        if owner is None or _alive(int(owner.group(1))):
+            continue
+        stale = os.path.join(directory, name)
+        try:
+            fd = os.open(stale, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+        except OSError:  # a symbolic link, gone meanwhile, not ours to read
+            continue
+        try:
+            status = os.fstat(fd)
+            if not stat.S_ISREG(status.st_mode) or status.st_uid != os.geteuid():
+                continue
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            now = os.lstat(stale)
+            if (now.st_dev, now.st_ino) == (status.st_dev, status.st_ino):  # the name still names this file
+                os.unlink(stale)
+        except OSError:  # locked by a live writer, or gone meanwhile
+            continue
+        finally:
+            os.close(fd)
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process `pid` exists here (one of another user counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):  # another user's; a PID too large to ask about is left alone
+        pass
+    return True
 
 
 @contextmanager

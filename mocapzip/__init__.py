@@ -23,8 +23,9 @@ import os as _os
 
 __version__ = "0.1.0"
 __all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError",
-           "ShellError", "__version__", "bvh_joint_positions", "bvh_point_names", "compress", "decompress",
-           "joint_positions", "read_amc", "read_asf", "read_bvh", "write_amc", "write_asf", "write_bvh"]
+           "ShellError", "__version__", "append", "bvh_joint_positions", "bvh_point_names", "compress",
+           "decompress", "joint_positions", "read_amc", "read_asf", "read_bvh", "remove", "write_amc", "write_asf",
+           "write_bvh"]
 _API = {*__all__, "open"} - {"__version__"}  # `open` is left out of __all__: a star import keeps the built-in
 
 

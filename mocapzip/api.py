@@ -1,5 +1,5 @@
 """mocapzip from Python (docs/api.md): open an archive and read its clips, compress and
-decompress, read and write ASF/AMC and BVH files.
+decompress, remove and append clips, read and write ASF/AMC and BVH files.
 
     import mocapzip
     with mocapzip.open("db.mcz") as archive:
@@ -16,6 +16,7 @@ Errors: `MocapFormatError` for an input file that cannot be read (it names the f
 from __future__ import annotations
 
 import difflib
+import errno
 import functools
 import numbers
 import os
@@ -44,8 +45,8 @@ from mocapzip.motion.metrics import ShellError, shell_errors
 from mocapzip.motion.skeleton import SkeletonModel
 
 __all__ = ["ArchiveError", "Bvh", "Clip", "ClipFidelity", "MocapArchive", "MocapFormatError", "SettingsError",
-           "ShellError", "bvh_joint_positions", "bvh_point_names", "compress", "decompress", "joint_positions",
-           "read_amc", "read_asf", "read_bvh", "write_amc", "write_asf", "write_bvh"]
+           "ShellError", "append", "bvh_joint_positions", "bvh_point_names", "compress", "decompress",
+           "joint_positions", "read_amc", "read_asf", "read_bvh", "remove", "write_amc", "write_asf", "write_bvh"]
 # also `open`, left out of __all__ so that `from mocapzip import *` does not hide the built-in
 
 
@@ -577,3 +578,48 @@ def decompress(archive: str | os.PathLike, output: str | os.PathLike, clips: Ite
     archive): all clips, or those whose path or file name matches one of the `clips` patterns
     (shell-style, e.g. "07/*", "07_0*"). Existing files are replaced only with `force`."""
     return reader.decompress(archive, output, tuple(clips), force=force, jobs=jobs)
+
+
+def _edited_in_place(archive: str | os.PathLike, output, force: bool) -> None:
+    """An edit without `output` replaces `archive`: only when asked to with `force`, as `mcz remove -f`."""
+    if output is None and not force:
+        raise FileExistsError(errno.EEXIST, "already exists: give output= for a new archive, or force=True to "
+                              "replace it in place", os.fspath(archive))
+
+
+def remove(archive: str | os.PathLike, patterns: str | Iterable[str], output: str | os.PathLike | None = None, *,
+           force: bool = False) -> dict:
+    """Write `archive` without the clips whose stored path or file name matches one of `patterns`
+    (shell-style, as `decompress`'s `clips`), as `mcz remove` does: to `output`, or in place
+    with `force`; every other clip is copied as it is and decodes to the same bytes. The old
+    archive is intact until the new one is complete. Returns the summary: "removed" (their
+    paths), "clips" (left), "output", "output_bytes", "seconds". MocapFormatError if no clip
+    matches, or every clip would go."""
+    from mocapzip.archive import edit  # the encoder's modules only when editing: open() is faster without
+
+    patterns = [patterns] if isinstance(patterns, str) else list(patterns)
+    if not patterns or not all(isinstance(p, str) for p in patterns):
+        raise TypeError(f"remove() takes one or more patterns (str), got {patterns!r}")
+    _edited_in_place(archive, output, force)
+    return edit.remove(archive, patterns, output, force=force)
+
+
+def append(archive: str | os.PathLike, inputs: str | os.PathLike | Iterable[str | os.PathLike],
+           output: str | os.PathLike | None = None, *, under: str | None = None, asf: str | os.PathLike | None = None,
+           units: str | None = None, jobs: int | None = None, force: bool = False, progress: bool = True) -> dict:
+    """Write `archive` with the AMC and BVH clips under `inputs` (folders or files) added, as
+    `mcz append` does: to `output`, or in place with `force`. The new clips are coded with the
+    archive's settings (so within its bounds), in classes of their own; every clip already
+    there is copied as it is. `under`: a folder of the archive to store them in ("09": 09_01.amc
+    as 09/09_01.amc); `asf`, `units`, `jobs` (every core by default) and `progress` as
+    `compress`'s. The old archive is intact until the new one is complete. Returns the summary:
+    "added" (their stored paths), "clips" (in all), "output", "output_bytes", "seconds".
+    MocapFormatError if the archive already holds a clip under one of their paths."""
+    from mocapzip.archive import edit
+
+    _edited_in_place(archive, output, force)
+    inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
+    jobs = (os.cpu_count() or 1) if jobs is None else jobs
+    with _bars(progress):
+        return edit.append(archive, [os.fspath(p) for p in inputs], output, force=force, jobs=jobs, under=under,
+                           asf=asf, units=units)

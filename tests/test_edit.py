@@ -13,9 +13,11 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+import mocapzip
 from mocapzip.archive import Archive, Settings, compress, decompress
 from mocapzip.archive import edit
 from mocapzip.cli.main import main
+from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import FORMAT_VERSION
 from tests.test_max_error import joint_errors
 
@@ -176,19 +178,21 @@ main(sys.argv[2:])
 def test_an_append_killed_leaves_the_archive_as_it_was(original, tmp_path, shared_data, when):
     """Killed while the new clips are coded, the new archive's streams wait in an unnamed file: nothing
     is left beside the archive. Killed while the new archive is written, its temporary file is left
-    (docs/editing.md), never in the archive's place."""
+    (docs/editing.md), never in the archive's place, and the next write to the archive removes it."""
     folder = tmp_path / "db"
     folder.mkdir()
     archive = folder / "a.mcz"
     archive.write_bytes(original.read_bytes())
     new = linked(tmp_path / "new", shared_data, NEW)
-    child = subprocess.run([sys.executable, "-c", KILLED_CHILD, when, "append", os.fspath(archive), os.fspath(new),
-                            "-f", "-q", "-j", "1"], env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
-                           capture_output=True, timeout=300)
-    assert child.returncode == -signal.SIGKILL
+    child = subprocess.Popen([sys.executable, "-c", KILLED_CHILD, when, "append", os.fspath(archive), os.fspath(new),
+                              "-f", "-q", "-j", "1"], env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    assert child.wait(timeout=300) == -signal.SIGKILL
     left = _listing(folder)
     assert left.pop("a.mcz") == original.read_bytes()
-    assert [name.startswith(".a.mcz.tmp-") for name in left] == ([] if when == "coding" else [True])
+    assert [name.startswith(f".a.mcz.tmp-{child.pid}-") for name in left] == ([] if when == "coding" else [True])
+    assert run("remove", archive, "09_01.amc", "-f", "-q").exit_code == 0
+    assert list(_listing(folder)) == ["a.mcz"]
 
 
 @pytest.mark.parametrize("arguments, said", [
@@ -216,3 +220,55 @@ def test_an_archive_edited_in_place_only_with_force(original, tmp_path):
     assert result.exit_code == 2
     assert result.stderr == ("mcz remove: name the new archive with -o, or give -f to replace ARCHIVE in place "
                              "(see mcz remove --help)\n")
+
+
+def test_the_api_edits_as_the_command_line(original, appended, tmp_path):
+    """`mocapzip.remove` and `mocapzip.append` write the archives `mcz remove` and `mcz append` write."""
+    bigger, new = appended
+    summary = mocapzip.append(original, new / "09", tmp_path / "b.mcz", under="09", jobs=2, progress=False)
+    assert summary["added"] == ["09/09_05.amc", "09/09_06-run.amc"] and summary["clips"] == 6
+    assert (tmp_path / "b.mcz").read_bytes() == bigger.read_bytes()
+    assert run("remove", original, "09_02*", "93_05.amc", "-o", tmp_path / "cli.mcz", "-q").exit_code == 0
+    summary = mocapzip.remove(original, ["09_02*", "93_05.amc"], tmp_path / "api.mcz")
+    assert summary["removed"] == ["09/09_02.amc", "93/93_05.amc"] and summary["clips"] == 2
+    assert summary["output_bytes"] == (tmp_path / "api.mcz").stat().st_size
+    assert (tmp_path / "api.mcz").read_bytes() == (tmp_path / "cli.mcz").read_bytes()
+    copy = tmp_path / "copy.mcz"
+    copy.write_bytes(original.read_bytes())
+    assert mocapzip.remove(copy, "09_02.amc", force=True)["output"] == os.fspath(copy)  # in place
+    assert set(rows(copy)) == {"09/09_01.amc", "09/09_03.amc", "93/93_05.amc"}
+
+
+IN_PLACE = "already exists: give output= for a new archive, or force=True"
+
+
+@pytest.mark.parametrize("edit_call, error", [
+    (lambda a, d: mocapzip.remove(a, "09_01.amc"), IN_PLACE),
+    (lambda a, d: mocapzip.append(a, d / "new", progress=False), IN_PLACE),
+    (lambda a, d: mocapzip.remove(a, [], d / "x.mcz"), "remove() takes one or more patterns (str), got []"),
+    (lambda a, d: mocapzip.remove(a, "nothing*", d / "x.mcz"), "no clip matches nothing*"),
+    (lambda a, d: mocapzip.append(a, d / "new", d / "x.mcz", under="../x", progress=False),
+     "under must be a relative folder without '.' or '..', got '../x'"),
+])
+def test_the_api_refuses_an_edit_before_writing(original, tmp_path, shared_data, edit_call, error):
+    linked(tmp_path / "new", shared_data, {"09": ["09_04.amc"]})
+    before = original.read_bytes()
+    with pytest.raises((OSError, TypeError, ValueError, MocapFormatError)) as raised:
+        edit_call(original, tmp_path)
+    assert error in str(raised.value)
+    assert original.read_bytes() == before and not (tmp_path / "x.mcz").exists()
+
+
+def test_an_api_append_interrupted_leaves_the_archive_as_it_was(original, tmp_path, shared_data, monkeypatch):
+    folder = tmp_path / "db"
+    folder.mkdir()
+    archive = folder / "a.mcz"
+    archive.write_bytes(original.read_bytes())
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(edit, "code_classes", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        mocapzip.append(archive, linked(tmp_path / "new", shared_data, NEW), force=True, progress=False)
+    assert _listing(folder) == {"a.mcz": original.read_bytes()}

@@ -15,6 +15,7 @@ planted symbolic link.
 from __future__ import annotations
 
 import errno
+import fcntl
 import json
 import os
 import resource
@@ -463,7 +464,32 @@ def test_temporary_file_is_never_opened_through_a_planted_link(tmp_path, monkeyp
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     monkeypatch.setattr(mcz.secrets, "token_hex", lambda n: "planted")
-    os.symlink(elsewhere / "created", tmp_path / ".x.mcz.tmp-planted")
+    planted = f".x.mcz.tmp-{os.getpid()}-planted"
+    os.symlink(elsewhere / "created", tmp_path / planted)
     with pytest.raises(FileExistsError):
         write_archive(tmp_path / "x.mcz", STREAMS, tool_version="1")
-    assert os.listdir(elsewhere) == [] and sorted(os.listdir(tmp_path)) == [".x.mcz.tmp-planted", "elsewhere"]
+    assert os.listdir(elsewhere) == [] and sorted(os.listdir(tmp_path)) == [planted, "elsewhere"]
+
+
+def test_a_dead_writers_temporary_file_is_removed_by_the_next_write_and_nothing_else(tmp_path):
+    """A writer killed outright (SIGKILL; tests/test_edit.py kills one for real) leaves its temporary
+    file: the next write to that archive deletes it. Only a regular file named as the writer names
+    them, whose PID is no process and whose lock is free: not a live writer's (its PID, or its lock
+    where the PID says nothing, as from another PID namespace), not a link, not another archive's."""
+    dead = int(Path("/proc/sys/kernel/pid_max").read_text()) + 1  # a PID no process can have
+    victim = tmp_path / "victim"
+    victim.write_bytes(b"precious")
+    names = {"stale": f".x.mcz.tmp-{dead}-0123456789ab", "live": f".x.mcz.tmp-{os.getpid()}-0123456789ab",
+             "locked": f".x.mcz.tmp-{dead}-ba9876543210", "link": f".x.mcz.tmp-{dead}-aaaaaaaaaaaa",
+             "other": f".y.mcz.tmp-{dead}-0123456789ab", "unlike": f".x.mcz.tmp-{dead}-planted",
+             "older": ".x.mcz.tmp-0123456789ab"}
+    for kind, name in names.items():
+        if kind == "link":
+            os.symlink(victim, tmp_path / name)
+        else:
+            (tmp_path / name).write_bytes(b"\x89HDF")
+    with open(tmp_path / names["locked"], "rb") as held:  # a live writer whose PID means nothing here
+        fcntl.flock(held, fcntl.LOCK_EX)
+        write_archive(tmp_path / "x.mcz", STREAMS, tool_version="1")
+    assert sorted(os.listdir(tmp_path)) == sorted({"x.mcz", "victim", *names.values()} - {names["stale"]})
+    assert victim.read_bytes() == b"precious"

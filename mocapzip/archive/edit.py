@@ -90,9 +90,10 @@ def append(archive_path, inputs, output=None, force: bool = False, jobs: int = 1
         with ArchiveWriter(output, tool_version=__version__, overwrite=force) as new, \
                 ArchiveWriter(output, tool_version=__version__, overwrite=True) as staged:  # never committed
             reader = job.clip_reader(cache_bytes)
-            clips = first_pass(job, reader, staged, jobs)
-            classes = classes_of(clips, reader, job.settings, jobs)
-            coded = code_classes(clips, classes, reader, job.settings, jobs)
+            plan, target = job.settings.class_plan(), job.settings.coding_target()
+            clips = first_pass(job, reader, job.settings.clip_reading(), plan, staged, jobs)
+            classes = classes_of(clips, reader, plan, target, jobs)
+            coded = code_classes(clips, classes, reader, plan, target, jobs)
             streams = coded.interim
             if old.priors is not None:
                 streams = primed_streams(coded.interim, old.priors, jobs)
@@ -122,7 +123,7 @@ def stored_folder(under: str) -> str:
     """`under` as the folder of stored paths: relative, no '.' or '..' (meta's checks say the rest at the write)."""
     parts = PurePosixPath(under).parts
     if not parts or under.startswith("/") or any(part in (".", "..") for part in under.split("/")):
-        raise ValueError(f"--under must be a relative folder without '.' or '..', got {under!r}")
+        raise ValueError(f"under must be a relative folder without '.' or '..', got {under!r}")
     return "/".join(parts)
 
 

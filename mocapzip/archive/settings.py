@@ -7,7 +7,9 @@ import math
 from dataclasses import dataclass, field, replace
 
 from mocapzip.classes.modes import compiled_modes
+from mocapzip.classes.plan import ClassPlan
 from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_FPS
+from mocapzip.inputs.clip import ClipReading
 from mocapzip.ratecontrol.target import Bounds, CodingTarget
 from mocapzip.stages import get_stage, stage_ids
 
@@ -73,6 +75,16 @@ class Settings:
     def stages(self) -> dict:
         """The stages of `chain()`, built from the registry (ValueError for an unknown one)."""
         return {kind: get_stage(kind, config) for kind, config in self.chain().items()}
+
+    def clip_reading(self) -> ClipReading:
+        """What reading the clips takes of these settings: the first pass and its reader take this part."""
+        return ClipReading(None if self.lossless else self.representation, self.axis_weight_cm,
+                           self.axes_from_positions, self.fps, self.fps_from_files, self.repair_glitches)
+
+    def class_plan(self) -> ClassPlan:
+        """What the classes take of these settings: the first pass, the classes pass and the class coding
+        take this part (`checked` settings name modes with --model tensor alone)."""
+        return ClassPlan(self.classes, self.lossless, self.segment and not self.lossless, self.modes)
 
     def coding_target(self) -> CodingTarget:
         """What lossy coding reads of these settings: rate control and -c auto's byte model take this part."""

@@ -55,16 +55,17 @@ def compress(inputs, output, settings: Settings, asf=None, force: bool = False, 
     """
     started = time.perf_counter()
     job = check(inputs, output, settings, asf, force, skip_bad, units)
+    plan, target = job.settings.class_plan(), job.settings.coding_target()  # each pass takes the parts it reads
     reader = job.clip_reader(cache_bytes)
     with ArchiveWriter(job.output, tool_version=__version__, overwrite=force) as archive:
-        clips = first_pass(job, reader, archive, jobs)
+        clips = first_pass(job, reader, job.settings.clip_reading(), plan, archive, jobs)
         while True:
-            classes = classes_of(clips, reader, job.settings, jobs)
+            classes = classes_of(clips, reader, plan, target, jobs)
             try:
-                coded = code_classes(clips, classes, reader, job.settings, jobs)
+                coded = code_classes(clips, classes, reader, plan, target, jobs)
                 break
             except TargetError as refused:
                 clips = leave_out(clips, refused, job, reader)
-        stored = entropy_pass(coded, job.settings, jobs)
+        stored = entropy_pass(coded, job.settings.chain(), jobs)
         written = write(job, clips, classes, coded, stored, archive)
     return summary(job, clips, written, time.perf_counter() - started)

@@ -174,6 +174,28 @@ def clip_frame_rate(stated: float | None, fps: float, from_files: bool = True) -
     return stated if stated and from_files else fps
 
 
+@dataclass(frozen=True)
+class ClipReading:
+    """How an archive's clips are read and what their rows say of it: the part of its settings
+    (`archive.settings.Settings.clip_reading`) the first pass takes, and its `ClipReader` reads with."""
+
+    representation: str | None  # a registered representation's id; None: lossless, the values as written
+    axis_weight_cm: float  # weight of bone axis vectors against positions (`Representation.column_weights`)
+    axes_from_positions: bool  # bones whose rotation follows from joint positions store no axis
+    fps: float  # clips' frame rate where their files state none; a row names its own only where it differs
+    fps_from_files: bool  # a rate the clip's files state wins over `fps`
+    repair_glitches: bool  # the glitches found are smoothed over by the coding, not held (the first pass says so)
+
+    @property
+    def lossless(self) -> bool:
+        return self.representation is None
+
+    def reader(self, budget_bytes: int | None, units: str | None) -> ClipReader:
+        """The reader of these clips, keeping them while they fit in `budget_bytes` (None: no limit)."""
+        return ClipReader(self.representation, self.axis_weight_cm, budget_bytes, self.axes_from_positions, self.fps,
+                          self.fps_from_files, units)
+
+
 class ClipReader:
     """Reads clips for a codec that visits each several times, keeping those that fit a byte budget.
 

@@ -7,7 +7,6 @@ import os
 from dataclasses import dataclass
 
 from mocapzip.archive.settings import Settings, checked
-from mocapzip.classes.auto import parse_auto
 from mocapzip.defaults import UNITS_CM
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.clip import ClipReader
@@ -20,24 +19,17 @@ class Job:
 
     inputs: list  # the paths given
     output: str
-    settings: Settings  # checked: the transform's config as its stage writes it
+    settings: Settings  # checked (the transform's config as its stage writes it); whole, as meta stores it
     sources: tuple[ClipSource, ...]  # the clips found, by stored path
     skip_bad: bool  # a clip that cannot be read is left out and listed instead of stopping the run
     skipped: tuple[dict, ...]  # what finding the clips left out: {"path", "error"} each (`discover.record_skip`)
     units: str | None  # of BVH files' lengths where they cannot be inferred (a `UNITS_CM` name)
 
-    @property
-    def keeps_every_clip(self) -> bool:
-        """Whether every clip stays in memory: `-c auto` and `--segment` analyse all their poses together."""
-        return not self.settings.lossless and (self.settings.segment or parse_auto(self.settings.classes) is not False)
-
     def clip_reader(self, cache_bytes: int | None) -> ClipReader:
         """The reader every pass loads clips through: it keeps them between passes while they fit
         in `cache_bytes` (None: no limit), every clip if the job needs them all."""
-        settings = self.settings
-        return ClipReader(None if settings.lossless else settings.representation, settings.axis_weight_cm,
-                          None if self.keeps_every_clip else cache_bytes, settings.axes_from_positions, settings.fps,
-                          settings.fps_from_files, self.units)
+        keeps_every_clip = self.settings.class_plan().keeps_every_clip
+        return self.settings.clip_reading().reader(None if keeps_every_clip else cache_bytes, self.units)
 
 
 def check(inputs, output, settings: Settings, asf=None, force: bool = False, skip_bad: bool = False,

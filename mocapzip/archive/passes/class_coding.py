@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 from mocapzip.archive.passes.classes import Classes, Unit
 from mocapzip.archive.passes.first_pass import ClipsRead
-from mocapzip.archive.settings import Settings
 from mocapzip.classes.modes import NaturalModes, natural_modes
+from mocapzip.classes.plan import ClassPlan
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.foot_lock import Stances
 from mocapzip.codec.patches import FramePatches
@@ -103,16 +103,17 @@ class _ClassCoding:
     tensor: TensorClass | None
 
 
-def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, settings: Settings,
+def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, plan: ClassPlan, target: CodingTarget,
                  jobs: int = 1) -> CodedClasses:
-    """Every class coded (lossy; nothing for a lossless archive, whose clips the first pass coded)."""
-    if settings.lossless:
+    """Every class coded within `target` (lossy; nothing for a lossless archive, whose clips the
+    first pass coded), as `plan`'s model: a tensor where a class's clips fill a grid of its modes."""
+    if plan.lossless:
         return CodedClasses((), (), {}, {})
-    transform, target = get_stage("transform", settings.transform), settings.coding_target()
+    transform = get_stage("transform", target.transform)
     members_of = [classes.members(k) for k in range(len(classes.names))]
     work = [_ClassWork(tuple(classes.units[u] for u in members), classes.poses.get(name),
-                       natural_modes([classes.units[u].source.relpath for u in members], settings.modes)
-                       if settings.model == "tensor" else None)
+                       natural_modes([classes.units[u].source.relpath for u in members], plan.modes)
+                       if plan.modes is not None else None)
             for name, members in zip(classes.names, members_of)]
     records, streams, interim, rows = [], {}, {}, {}
     segments: dict[int, list] = defaultdict(list)  # take -> (unit index, class, SegmentCoding) of its segments
@@ -123,7 +124,7 @@ def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, setting
                 closing(_class_codings(work, transform, target, jobs)) as coded:
             for k, (name, members, class_work, coding) in enumerate(zip(classes.names, members_of, work, coded)):
                 streams[f"class/{k:04d}"] = coding.basis.encode()
-                records.append(_class_record(name, class_work, coding, settings))
+                records.append(_class_record(name, class_work, coding, plan.modes is not None))
                 if coding.tensor is not None:
                     streams[f"tensor/{k:04d}"] = coding.tensor.model_stream
                 for j, (u, unit_coding) in enumerate(zip(members, coding.codings)):
@@ -159,9 +160,9 @@ def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, setting
     return CodedClasses(tuple(records), tuple(rows[i] for i in range(len(clips.sources))), streams, interim)
 
 
-def _class_record(name: str, work: _ClassWork, coding: _ClassCoding, settings: Settings) -> ClassRecord:
+def _class_record(name: str, work: _ClassWork, coding: _ClassCoding, tensor: bool) -> ClassRecord:
     clips = len({unit.clip for unit in work.units})
-    if settings.model != "tensor":
+    if not tensor:
         return ClassRecord(name, coding.basis.q, clips, work.frames)
     if coding.tensor is None:
         return ClassRecord(name, coding.basis.q, clips, work.frames, "pca")

@@ -9,9 +9,9 @@ from collections import Counter
 from dataclasses import dataclass, replace
 
 from mocapzip.archive.passes.first_pass import ClipsRead
-from mocapzip.archive.settings import Settings
 from mocapzip.classes.auto import auto_classes, parse_auto
 from mocapzip.classes.by_name import pooled_classes
+from mocapzip.classes.plan import ClassPlan
 from mocapzip.classes.segment import segment_take
 from mocapzip.codec.pca import CovarianceAccumulator
 from mocapzip.codec.segments import coded_range
@@ -19,6 +19,7 @@ from mocapzip.formats.amc import Motion
 from mocapzip.inputs.clip import ClipReader, LoadedClip
 from mocapzip.inputs.discover import ClipSource
 from mocapzip.progress import progress
+from mocapzip.ratecontrol.target import CodingTarget
 from mocapzip.representations.base import Encoded
 
 
@@ -57,18 +58,18 @@ class Classes:
         return [u for u, c in enumerate(self.unit_class) if c == k]
 
 
-def classes_of(clips: ClipsRead, reader: ClipReader, settings: Settings, jobs: int = 1) -> Classes:
-    """The units of `clips` and the class of each."""
+def classes_of(clips: ClipsRead, reader: ClipReader, plan: ClassPlan, target: CodingTarget, jobs: int = 1) -> Classes:
+    """The units of `clips` and the class of each; -c auto sizes its classes as `target` codes them."""
     path_classes, poses = clips.path_classes, clips.poses
-    if settings.classes == "pooled" and not settings.lossless:
+    if plan.classes == "pooled" and not plan.lossless:
         path_classes, poses = _pooled(clips)
-    units = _units(clips, reader, settings.segment and not settings.lossless)
+    units = _units(clips, reader, plan.segment)
     auto_report: dict = {}
     if path_classes:  # a take's segments share its class
         unit_names = [path_classes[unit.clip] for unit in units]
     else:
-        unit_names = auto_classes([unit.load(reader) for unit in units], parse_auto(settings.classes),
-                                  settings.coding_target(), jobs=jobs, report=auto_report)
+        unit_names = auto_classes([unit.load(reader) for unit in units], parse_auto(plan.classes), target,
+                                  jobs=jobs, report=auto_report)
     names = tuple(sorted(set(unit_names)))
     number = {name: k for k, name in enumerate(names)}
     unit_class = tuple(number[name] for name in unit_names)

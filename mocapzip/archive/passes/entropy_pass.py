@@ -6,7 +6,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mocapzip.archive.passes.class_coding import CodedClasses
-from mocapzip.archive.settings import Settings
 from mocapzip.codec.entropy.priors import stored_streams
 
 
@@ -14,12 +13,13 @@ from mocapzip.codec.entropy.priors import stored_streams
 class StoredClips:
     """The clip streams as the archive stores them."""
 
-    coder: str  # the coefficient coder they use: the settings', "auto" resolved
+    coder: str | None  # the coefficient coder they use: the chain's, "auto" resolved; None: lossless, none
     streams: dict[str, bytes]  # clip/NNNNN, clip/NNNNN/SSS, and "priors" with the coder "primed"
 
 
-def entropy_pass(coded: CodedClasses, settings: Settings, jobs: int = 1) -> StoredClips:
-    """The clip streams as stored (lossy; nothing for a lossless archive, whose clips the first pass coded)."""
-    if settings.lossless:
-        return StoredClips(settings.coefficient_coder, {})
-    return StoredClips(*stored_streams(coded.interim, settings.coefficient_coder, jobs))
+def entropy_pass(coded: CodedClasses, chain: dict[str, dict], jobs: int = 1) -> StoredClips:
+    """The clip streams as stored, coded with `chain`'s coefficient coder (`Settings.chain`). A lossless
+    chain has none: the first pass coded its clips, and nothing is stored here."""
+    if "coefficient coder" not in chain:
+        return StoredClips(None, {})
+    return StoredClips(*stored_streams(coded.interim, chain["coefficient coder"]["id"], jobs))

@@ -21,14 +21,14 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from mocapzip.archive.passes.check import Job
-from mocapzip.archive.settings import Settings
 from mocapzip.classes.auto import parse_auto
 from mocapzip.classes.by_name import class_namer
+from mocapzip.classes.plan import ClassPlan
 from mocapzip.codec.lossless import encode_channels
 from mocapzip.codec.pca import CovarianceAccumulator
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.mcz import ArchiveWriter
-from mocapzip.inputs.clip import ClipReader, LoadedClip
+from mocapzip.inputs.clip import ClipReader, ClipReading, LoadedClip
 from mocapzip.inputs.discover import ClipSource, record_skip
 from mocapzip.inputs.registry import InputFormat, SourceSkeleton
 from mocapzip.limits import MAX_COEFFICIENTS_PER_MATRIX
@@ -63,21 +63,23 @@ class ClipsRead:
     skipped: tuple[dict, ...]  # with skip_bad, what was left out, the job's first: {"path", "error"} each
 
 
-def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int = 1) -> ClipsRead:
-    """Read every clip of `job` once (see the module doc); a lossless clip's stream goes to `archive`
-    at once (a lossy clip's is far smaller, and comes later: it is held until every class is coded).
+def first_pass(job: Job, reader: ClipReader, reading: ClipReading, plan: ClassPlan, archive: ArchiveWriter,
+               jobs: int = 1) -> ClipsRead:
+    """Read every clip of `job` once (see the module doc), through `reader` (made from `reading`);
+    `plan` names the classes where paths decide them. A lossless clip's stream goes to `archive` at
+    once (a lossy clip's is far smaller, and comes later: it is held until every class is coded).
 
     A clip that cannot be read raises MocapFormatError or OSError; with `job.skip_bad` it is left
     out and recorded in `skipped` instead (`inputs.record_skip`)."""
-    settings, accumulate = job.settings, not job.keeps_every_clip
-    if parse_auto(settings.classes) is False:
-        name_class = class_namer(settings.classes)
+    accumulate = not plan.keeps_every_clip
+    if parse_auto(plan.classes) is False:
+        name_class = class_namer(plan.classes)
     else:  # lossless clips share no basis: there is nothing to group
-        name_class = (lambda source: "all") if settings.lossless else None
+        name_class = (lambda source: "all") if plan.lossless else None
     sources, rows, path_classes, pose_widths, extra_roots, poses, glitches = [], [], [], [], [], {}, Counter()
     skipped = list(job.skipped) if job.skip_bad else None
-    _SHARED.update(reader=reader, settings=settings, accumulate=accumulate)  # the workers fork from here
-    taken_there = on_a_cluster() and (accumulate or settings.lossless)
+    _SHARED.update(reader=reader, reading=reading, accumulate=accumulate)  # the workers fork from here
+    taken_there = on_a_cluster() and (accumulate or reading.lossless)
     try:
         with closing(imap(_read_and_take if taken_there else _read_clip, job.sources, jobs,
                           CLIPS_AHEAD * jobs)) as read:
@@ -96,7 +98,7 @@ def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int =
                     else:
                         clip, stream = outcome
                         clip.model = model
-                        taken = _take(clip, stream, settings, accumulate)
+                        taken = _take(clip, stream, reading, accumulate)
                 except (MocapFormatError, OSError) as exc:
                     if skipped is None:
                         raise
@@ -107,7 +109,7 @@ def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int =
                     glitches["clips"] += 1
                 if name_class is not None:
                     path_classes.append(name_class(source))
-                if settings.lossless:
+                if reading.lossless:
                     archive.add(f"clip/{len(sources):05d}", taken.stream)
                     rows.append({**taken.row, "error_cm": 0.0, "p99_error_cm": 0.0, "max_error_cm": 0.0})
                 else:
@@ -118,10 +120,10 @@ def first_pass(job: Job, reader: ClipReader, archive: ArchiveWriter, jobs: int =
                         reader.keep(taken.clip)
                 sources.append(source)
                 pose_widths.append(taken.width)
-                extra_roots.append(None if settings.lossless else taken.stream)
+                extra_roots.append(None if reading.lossless else taken.stream)
     finally:
         _SHARED.clear()
-    _report_glitches(glitches, settings.repair_glitches)
+    _report_glitches(glitches, reading.repair_glitches)
     if not sources:
         raise _nothing_left(job, skipped)
     skeletons, skeleton_of = _skeletons_of(sources, reader)
@@ -231,13 +233,13 @@ class _Taken:
     clip: LoadedClip | None
 
 
-def _take(clip: LoadedClip, stream: bytes | None, settings: Settings, accumulate: bool) -> _Taken:
+def _take(clip: LoadedClip, stream: bytes | None, reading: ClipReading, accumulate: bool) -> _Taken:
     """The first pass's take of a clip read (`_Taken`); MocapFormatError if a lossy archive cannot hold it."""
-    if settings.lossless:
-        return _Taken(_clip_row(clip, settings.fps), clip.glitches, 0, None, stream, clip)
+    if reading.lossless:
+        return _Taken(_clip_row(clip, reading.fps), clip.glitches, 0, None, stream, clip)
     _check_codable(clip)
     poses = _pose_sums(clip) if accumulate else None
-    return _Taken(_clip_row(clip, settings.fps), clip.glitches, clip.poses.shape[1], poses, stream, clip)
+    return _Taken(_clip_row(clip, reading.fps), clip.glitches, clip.poses.shape[1], poses, stream, clip)
 
 
 def _pose_sums(clip: LoadedClip) -> CovarianceAccumulator:
@@ -255,7 +257,7 @@ def _read_and_take(source: ClipSource) -> _Taken | MocapFormatError | OSError:
     clip, stream = outcome
     clip.model = _SHARED["reader"].skeleton(source).model
     try:
-        return replace(_take(clip, stream, _SHARED["settings"], _SHARED["accumulate"]), clip=None)
+        return replace(_take(clip, stream, _SHARED["reading"], _SHARED["accumulate"]), clip=None)
     except MocapFormatError as exc:
         return exc
 
@@ -272,7 +274,7 @@ def _check_codable(clip: LoadedClip) -> None:
 
 def _clip_row(clip: LoadedClip, fps: float) -> dict:
     """A clip's row in meta as far as the clip itself tells (its skeleton, class and errors come later);
-    `fps` is the settings', which the row repeats only where the clip's own differs."""
+    `fps` is the settings' (`ClipReading.fps`), which the row repeats only where the clip's own differs."""
     m = clip.motion
     row = {
         "path": clip.source.relpath,

@@ -58,7 +58,8 @@ def assemble(job: Job, clips: ClipsRead, classes: Classes, coded: CodedClasses, 
     rows = [_clip_row(*parts) for parts in zip(clips.rows, clips.skeleton_of, classes.clip_class, codings)]
     meta = {
         "tool": f"mocapzip {__version__}",
-        "settings": _stored_settings(replace(job.settings, coefficient_coder=stored.coder)),
+        "settings": _stored_settings(job.settings if stored.coder is None else  # lossless: the settings' coder
+                                     replace(job.settings, coefficient_coder=stored.coder)),
         "skeletons": [stored.format.entry(stored.path.name, stored.skeleton) for stored in clips.skeletons],
         "classes": [_class_row(record) for record in coded.classes],
         "clips": rows,
