@@ -167,3 +167,37 @@ def test_contact_error_holds_planted_feet(shared_data, tmp_path):
     with Archive(archive) as opened:
         assert opened.meta["settings"]["contact_error_cm"] == 1.0 and opened.clips[0]["patched_frames"] > 0
     assert "planted feet <= 1.0 cm" in run("info", archive).output
+
+
+def test_a_patch_takes_the_least_change_that_puts_the_joints_back(shared_data):
+    """A joint's position leaves whole turns, a bone's twist about itself and an Euler triple's
+    other branch free, and a patch must not pay for them: on 01_09 (angles stored up to 990
+    degrees) decoded values a whole turn off in every rotation channel, and a knee 4 cm off by
+    a femur turned 5 degrees, get a correction of the femur (and less than half a degree
+    elsewhere) that puts every joint back within 0.05 cm, not the source's values."""
+    from mocapzip.codec.patches import channel_steps
+    from mocapzip.inputs.clip import load_clips
+    from mocapzip.inputs.discover import find_clips
+    from mocapzip.ratecontrol.max_error import _chain_channels, _least_corrections
+
+    (clip,) = load_clips(find_clips([shared_data / "cmu" / "01" / "01_09.amc"]), "aligned", 12.0)
+    source = clip.motion.values[:40]
+    labels = [f"{bone}.{channel}" for bone, count in zip(clip.layout.bones, clip.layout.counts)
+              for channel in clip.model.channels[clip.model.index[bone]][:count]]
+    rotations = np.array([label.split(".")[1].startswith("r") for label in labels])
+    femur = labels.index("rfemur.rx")
+    decoded = source + 360.0 * rotations  # a whole turn off: no joint moves
+    decoded[:, femur] += 5.0
+    tail, original = clip.decode_tail, clip.positions[:40]
+    before = tail.joint_distances(decoded, original)
+    assert before.max() > 3  # the knee and everything below it are off
+    steps = channel_steps(clip.model, clip.layout)
+    free = (_chain_channels(clip)[np.argmax(before.max(axis=0))] > 0)[None].repeat(len(source), axis=0)
+    held = np.ones(before.shape, bool)
+    change, least = _least_corrections(tail, decoded, original, free, held, steps, source - decoded,
+                                       np.full(before.shape, 1.0), before)
+    assert least.all()
+    assert tail.joint_distances(decoded + change, original).max() < 0.05
+    assert np.abs(change[:, femur] + 5.0).max() < 0.01
+    others = np.delete(np.abs(change), femur, axis=1)
+    assert others.max() < 0.5  # degrees: no turn, no other branch
