@@ -525,7 +525,8 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     scheduler's address, or "local:N"; docs/cluster.md; a script that starts a local one needs
     `if __name__ == "__main__":`).
     Other keywords
-    are fields of `mocapzip.archive.Settings` (representation="positions", ...); `fps=60` sets every
+    are fields of `mocapzip.archive.Settings` (representation="positions", ...; its default "auto" picks
+    by `error`, and the archive's settings name the one used); `fps=60` sets every
     clip's frame rate, as `--fps` (by default a clip takes the rate its files state, else 120). An
     existing `output` is replaced only with `force`.
     """

@@ -15,3 +15,12 @@ UNITS_CM = {"cm": 1.0, "mm": 0.1, "m": 100.0, "in": 2.54}  # BVH length units (`
 # memory (MB) for clips kept between compress's passes (`inputs.clip.ClipReader`): the shared CMU set
 # (143,495 frames) holds 535 MB; at 512 some of its clips were read again, 5 % of compress's time
 DEFAULT_CACHE_MB = 1024
+# compress's default representation: resolved by the error asked for (`archive.settings.chosen_representation`)
+AUTO_REPRESENTATION = "auto"
+# `channels` codes CMU in fewer bytes than `aligned` where -e x fps is below CHANNELS_BELOW_CM_HZ,
+# or --max-vertex-error x fps below CHANNELS_BELOW_VERTEX_CM_HZ; `aligned` elsewhere. The crossover
+# of 20 CMU clips: -e 0.067 cm at 24 fps, 0.012 at 120 (x fps: 1.6, 1.4), the default joint bound
+# or none; with --max-vertex-error 2.5 x -e, about -e 0.2 at 24 fps and 0.045 at 120 (vertex x fps:
+# about 12). docs/fidelity.md, "Representation by error".
+CHANNELS_BELOW_CM_HZ = 1.5
+CHANNELS_BELOW_VERTEX_CM_HZ = 12.0
