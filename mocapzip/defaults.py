@@ -19,8 +19,9 @@ DEFAULT_CACHE_MB = 1024
 AUTO_REPRESENTATION = "auto"
 # `channels` codes CMU in fewer bytes than `aligned` where -e x fps is below CHANNELS_BELOW_CM_HZ,
 # or --max-vertex-error x fps below CHANNELS_BELOW_VERTEX_CM_HZ; `aligned` elsewhere. The crossover
-# of 20 CMU clips: -e 0.067 cm at 24 fps, 0.012 at 120 (x fps: 1.6, 1.4), the default joint bound
-# or none; with --max-vertex-error 2.5 x -e, about -e 0.2 at 24 fps and 0.045 at 120 (vertex x fps:
-# about 12). docs/fidelity.md, "Representation by error".
+# of 20 CMU clips, with the default joint bound or none: -e x fps 1.3 to 1.6 at 24, 30, 60 and 120
+# fps; with every vertex within 2.5 x -e, vertex x fps 12 (3.5 and 5 x -e: 8 to 8.6). These two
+# keep every measured pick within 1.5 % of the smaller archive but one (docs/fidelity.md,
+# "Representation by error").
 CHANNELS_BELOW_CM_HZ = 1.5
 CHANNELS_BELOW_VERTEX_CM_HZ = 12.0
