@@ -131,7 +131,10 @@ def test_a_clip_a_stored_class_explains_is_coded_in_that_class(original, tmp_pat
         assert all(b.stream(f"class/{k:04d}") == a.stream(f"class/{k:04d}") for k in range(len(counts)))
     row = both["again/09_02.amc"]
     assert row["class"] == old["09/09_02.amc"]["class"]
-    errors = joint_errors(shared_data / "cmu/09/09_02.amc", tmp_path / "b/again/09_02.amc", shared_data / "cmu/09/09.asf")
+    assert run("remove", bigger, "again/*", "-o", tmp_path / "again.mcz", "-q").exit_code == 0
+    assert (tmp_path / "again.mcz").read_bytes() == original.read_bytes()  # its class recounted as it was
+    source = shared_data / "cmu/09"
+    errors = joint_errors(source / "09_02.amc", tmp_path / "b/again/09_02.amc", source / "09.asf")
     assert errors.mean() <= PRIMED.error_cm and errors.max() <= PRIMED.max_error_cm
     assert errors.mean() == pytest.approx(row["error_cm"], abs=1e-6)
     assert errors.max() == pytest.approx(row["max_error_cm"], abs=1e-6)
