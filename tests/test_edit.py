@@ -156,6 +156,18 @@ def test_a_clip_no_stored_class_fits_gets_a_class_of_its_own(original, tmp_path,
     assert {path: after[path] for path in before} == before
 
 
+def test_segmented_takes_are_appended_in_classes_of_their_own(shared_data, tmp_path):
+    """--segment: a take's segments are joined across their classes, so none goes to a stored one,
+    even the take its class was fitted to."""
+    archive, bigger = tmp_path / "seg.mcz", tmp_path / "b.mcz"
+    compress([linked(tmp_path / "src", shared_data, {"09": ["09_02.amc"]})], archive, Settings(segment=True), jobs=2)
+    again = linked(tmp_path / "new", shared_data, {"09": ["09_02.amc"]})
+    summary = mocapzip.append(archive, again / "09", bigger, under="again", jobs=2, progress=False)
+    assert summary["in_stored_classes"] == []
+    with Archive(archive) as a, Archive(bigger) as b:
+        assert len(b.meta["classes"]) == 2 * len(a.meta["classes"])
+
+
 def test_appended_clips_decode_as_compressed_alone(appended, tmp_path):
     """Coded again from the archive's priors, the new clips' coefficients are those compress gives them."""
     bigger, new = appended
