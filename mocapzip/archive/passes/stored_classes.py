@@ -1,5 +1,5 @@
 """`mcz append`'s clips coded in the archive's stored classes: each new clip against the stored
-basis (the decoder's, quantised) that explains most of its poses, by the rate control that codes
+basis (the decoder's, quantised) nearest it (`nearest_class`), by the rate control that codes
 a class's clips (`ratecontrol.encode.coded_within`), so that its row naming that class is all a
 reader needs. `archive.edit.append` keeps a clip there where that measures fewer bytes than the
 new class compress's passes code it in (docs/editing.md).
