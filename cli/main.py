@@ -677,8 +677,8 @@ def remove(archive_path, patterns, output, force, quiet):
 def append(archive_path, inputs, output, under, asf, units, jobs, cache_mb, force, quiet):
     """Write ARCHIVE with the AMC and BVH clips under INPUTS added, coded with ARCHIVE's settings.
 
-    The new clips are coded as compress codes them, in classes of their own, and their streams
-    from ARCHIVE's priors; every clip already there is copied as it is. A clip stored under a
+    The new clips are coded as compress codes them, each in ARCHIVE's class nearest it where
+    that takes fewer bytes than a class of their own, and their streams from ARCHIVE's priors; every clip already there is copied as it is. A clip stored under a
     path ARCHIVE holds is refused. The new archive is written atomically; ARCHIVE is intact
     until it is complete. What it costs against compressing everything again: docs/editing.md.
 
