@@ -328,7 +328,9 @@ def score_mcz(args, sources, exported, inputs: Path, work: Path, mean_cm: float,
         path.unlink()
     setting = f"-e {mean_cm:g} --max-error {'none' if max_cm is None else f'{max_cm:g}'}"
     setting += "" if vertex_cm is None else f" --max-vertex-error {vertex_cm:.4g}"
-    setting += "" if representation is None else f" -r {representation}"
+    with mocapzip.open(archive) as opened:  # the default ("auto") or the one given, as the archive stores it
+        used = opened.settings.representation
+    setting += f" -r {used}" if representation not in (None, "auto") else f" (-r auto: {used})"
     return Score("mcz", setting, summary["output_bytes"], clips, seconds, agreement)
 
 
@@ -381,7 +383,7 @@ def main(argv=None) -> None:
     parser.add_argument("--clips", type=int, default=4, help="clips spread over the data set (default 4)")
     parser.add_argument("--runs", default=RUNS, help="mcz's comma-separated -e:--max-error[:--max-vertex-error[:-r]] "
                         "settings (MAX 'none': no bound on joints; VERTEX 'acl': ACL's worst vertex at its first "
-                        "precision, '' none; -r a representation, e.g. channels)")
+                        "precision, '' none; -r a representation, e.g. channels; none: auto, mcz's default)")
     parser.add_argument("--acl-precision", default=str(ACL_PRECISION_CM), help="ACL's comma-separated precisions (cm)")
     parser.add_argument("-j", "--jobs", type=int, default=1)
     parser.add_argument("--keep", type=Path, help="write the clips, ACL files and archives here and keep them")

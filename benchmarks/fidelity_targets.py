@@ -37,10 +37,10 @@ from clip_edges import edge_errors  # noqa: E402
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 BOUNDS = (5.0, 4.0, 3.0)  # candidate default bounds at -e 1, besides the default
 DEFAULT_BUDGET = 0.15  # the issue: the default bound is the tightest that costs at most 15 % over the mean alone
-# benchmarks/acl.py's -e:MAX:VERTEX:REPRESENTATION runs: every vertex held to ACL's own worst ("acl"), with the
-# default representation and with `channels` (far smaller at such errors: docs/acl.md), at two mean targets each;
-# -e 1 as the loose end its interpolation needs
-ACL_RUNS = "1:10,0.004:none:acl,0.006:none:acl:channels,0.009:none:acl:channels"
+# benchmarks/acl.py's -e:MAX:VERTEX runs: every vertex held to ACL's own worst ("acl"), with the default
+# representation ("auto": `channels` at such errors, docs/fidelity.md), at two mean targets; -e 1 as the loose
+# end its interpolation needs
+ACL_RUNS = "1:10,0.004:none:acl,0.009:none:acl"
 
 
 def bytes_per_frame(inputs: Path, jobs: int, **options) -> float:

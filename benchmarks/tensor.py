@@ -168,6 +168,7 @@ def codec_report(data: Path, errors: list[float], jobs: int) -> None:
     import tempfile
 
     from mocapzip.archive import Settings, compress
+    from mocapzip.archive.settings import checked
     from mocapzip.archive.passes import class_coding
 
     tried: dict[str, list] = {}
@@ -183,7 +184,7 @@ def codec_report(data: Path, errors: list[float], jobs: int) -> None:
         for name, (pattern, cls, modes) in CODEC_SETS.items():
             paths = sorted(data.glob(pattern))
             table = Path(tmp) / f"{name}.csv"
-            default = Settings()
+            default = checked(Settings())  # the representation compress resolves at -e 1
             reader = ClipReader(default.representation, default.axis_weight_cm,
                                 axes_from_positions=default.axes_from_positions, fps=DEFAULT_FPS)
             with table.open("w", newline="") as out:

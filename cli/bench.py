@@ -10,7 +10,7 @@ import click
 from mocapzip.cli import importing
 from mocapzip.cli.choices import MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNITS, max_error_value
 from mocapzip.cli.errors import reports_errors
-from mocapzip.defaults import ACL_SHELL_CM
+from mocapzip.defaults import ACL_SHELL_CM, AUTO_REPRESENTATION
 
 CODEC_CHOICES = ("mcz", "hou", "hou-shared", "xz", "zstd")
 
@@ -46,8 +46,9 @@ def _codecs(values):
 @click.option("-e", "--error", "errors", multiple=True, type=click.FloatRange(min=0, min_open=True), metavar="CM",
               help="Target mean joint error in cm (repeat for a sweep; default 1.0). Hou et al. get the same targets.")
 @click.option("-r", "--representation", "representations", multiple=True,
-              type=click.Choice(REPRESENTATIONS),
-              help="What mcz compresses (repeat for a sweep; default aligned).")
+              type=click.Choice((AUTO_REPRESENTATION, *REPRESENTATIONS)),
+              help="What mcz compresses (repeat for a sweep; default auto, as mcz compress: each run names the "
+                   "one it resolves to).")
 @click.option("-t", "--transform", "transforms", multiple=True, type=click.Choice(TRANSFORMS),
               help="Temporal transform (repeat for a sweep; default dct-edges).")
 @click.option("--wavelet", default="db4", show_default=True, help="Wavelet for --transform dwt.")
@@ -114,7 +115,7 @@ def bench(inputs, errors, representations, transforms, wavelet, classes, splits,
             raise click.UsageError("--plot needs matplotlib: pip install 'mocapzip[plot]'") from None
     progress.set_quiet(quiet)
     options = bench_module.BenchOptions(
-        inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or ["aligned"],
+        inputs=list(inputs), errors=list(errors) or [1.0], representations=list(representations) or [AUTO_REPRESENTATION],
         transforms=list(transforms) or ["dct-edges"], classes=list(classes) or ["pooled"], splits=_splits(splits),
         codecs=_codecs(codecs), asf=asf, groups=groups, jobs=jobs, wavelet=wavelet, quiet=quiet, max_error=max_error,
         contact_error=contact_error, plant_feet=plant_feet, units=units, shell_cm=shell_cm)

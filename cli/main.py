@@ -26,7 +26,8 @@ from mocapzip.cli.choices import (MAX_TO_MEAN, REPRESENTATIONS, TRANSFORMS, UNIT
                                   max_error_value)
 from mocapzip.cli.errors import UsageInOneLine, reports_errors
 from mocapzip.cluster import LOCAL_WORKERS_PER_CORE, ClusterError, parse_address
-from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_CACHE_MB, DEFAULT_FPS
+from mocapzip.defaults import (ACL_SHELL_CM, AUTO_REPRESENTATION, CHANNELS_BELOW_CM_HZ, CHANNELS_BELOW_VERTEX_CM_HZ,
+                               DEFAULT_CACHE_MB, DEFAULT_FPS)
 
 
 @click.group("mcz", cls=UsageInOneLine, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -233,8 +234,13 @@ def _refuse_lossy_options(ctx: click.Context) -> None:
               help="Every AMC value comes back as written; refuses the lossy-only options "
                    "-e, --max-error, --contact-error, --plant-feet, --repair-glitches, -r, -t, --wavelet, --level, --knot-spacing, "
                    "--split and --segment.")
-@click.option("-r", "--representation", type=click.Choice(REPRESENTATIONS),
-              default="aligned", show_default=True, help="What the codec compresses (thesis section 3.2.1).")
+@click.option("-r", "--representation", type=click.Choice((AUTO_REPRESENTATION, *REPRESENTATIONS)),
+              default=AUTO_REPRESENTATION, show_default=True,
+              help="What the codec compresses (thesis section 3.2.1). auto: channels where -e times the "
+                   f"frame rate (--fps; {DEFAULT_FPS:g} by default) is below {CHANNELS_BELOW_CM_HZ:g} cm/s "
+                   f"(-e {CHANNELS_BELOW_CM_HZ / DEFAULT_FPS:g} at {DEFAULT_FPS:g} fps), or --max-vertex-error "
+                   f"times it below {CHANNELS_BELOW_VERTEX_CM_HZ:g}; else aligned: the smaller of the two on CMU "
+                   "(docs/fidelity.md). The archive stores the one used.")
 @click.option("-t", "--transform", type=click.Choice(TRANSFORMS), default="dct-edges", show_default=True,
               help="Temporal transform of the PCA curves: dct-edges (the DCT, with the largest curves' first "
                    "and last frames kept by their ends: clip edges as good as the middle, and the smallest on "
@@ -671,8 +677,8 @@ def remove(archive_path, patterns, output, force, quiet):
 def append(archive_path, inputs, output, under, asf, units, jobs, cache_mb, force, quiet):
     """Write ARCHIVE with the AMC and BVH clips under INPUTS added, coded with ARCHIVE's settings.
 
-    The new clips are coded as compress codes them, in classes of their own, and their streams
-    from ARCHIVE's priors; every clip already there is copied as it is. A clip stored under a
+    The new clips are coded as compress codes them, each in ARCHIVE's class nearest it where
+    that takes fewer bytes than a class of their own, and their streams from ARCHIVE's priors; every clip already there is copied as it is. A clip stored under a
     path ARCHIVE holds is refused. The new archive is written atomically; ARCHIVE is intact
     until it is complete. What it costs against compressing everything again: docs/editing.md.
 

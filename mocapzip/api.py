@@ -525,7 +525,8 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     scheduler's address, or "local:N"; docs/cluster.md; a script that starts a local one needs
     `if __name__ == "__main__":`).
     Other keywords
-    are fields of `mocapzip.archive.Settings` (representation="positions", ...); `fps=60` sets every
+    are fields of `mocapzip.archive.Settings` (representation="positions", ...; its default "auto" picks
+    by `error`, and the archive's settings name the one used); `fps=60` sets every
     clip's frame rate, as `--fps` (by default a clip takes the rate its files state, else 120). An
     existing `output` is replaced only with `force`.
     """
@@ -609,11 +610,13 @@ def append(archive: str | os.PathLike, inputs: str | os.PathLike | Iterable[str 
            units: str | None = None, jobs: int | None = None, force: bool = False, progress: bool = True) -> dict:
     """Write `archive` with the AMC and BVH clips under `inputs` (folders or files) added, as
     `mcz append` does: to `output`, or in place with `force`. The new clips are coded with the
-    archive's settings (so within its bounds), in classes of their own; every clip already
+    archive's settings (so within its bounds), each in the archive's class nearest it where that
+    takes fewer bytes than a class of their own (docs/editing.md); every clip already
     there is copied as it is. `under`: a folder of the archive to store them in ("09": 09_01.amc
     as 09/09_01.amc); `asf`, `units`, `jobs` (every core by default) and `progress` as
     `compress`'s. The old archive is intact until the new one is complete. Returns the summary:
-    "added" (their stored paths), "clips" (in all), "output", "output_bytes", "seconds".
+    "added" (their stored paths), "in_stored_classes" (those coded in the archive's classes),
+    "clips" (in all), "output", "output_bytes", "seconds".
     MocapFormatError if the archive already holds a clip under one of their paths."""
     from mocapzip.archive import edit
 

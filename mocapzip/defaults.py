@@ -15,3 +15,13 @@ UNITS_CM = {"cm": 1.0, "mm": 0.1, "m": 100.0, "in": 2.54}  # BVH length units (`
 # memory (MB) for clips kept between compress's passes (`inputs.clip.ClipReader`): the shared CMU set
 # (143,495 frames) holds 535 MB; at 512 some of its clips were read again, 5 % of compress's time
 DEFAULT_CACHE_MB = 1024
+# compress's default representation: resolved by the error asked for (`archive.settings.chosen_representation`)
+AUTO_REPRESENTATION = "auto"
+# `channels` codes CMU in fewer bytes than `aligned` where -e x fps is below CHANNELS_BELOW_CM_HZ,
+# or --max-vertex-error x fps below CHANNELS_BELOW_VERTEX_CM_HZ; `aligned` elsewhere. The crossover
+# of 20 CMU clips, with the default joint bound or none: -e x fps 1.3 to 1.6 at 24, 30, 60 and 120
+# fps; with every vertex within 2.5 x -e, vertex x fps 12 (3.5 and 5 x -e: 8 to 8.6). These two
+# keep every measured pick within 1.5 % of the smaller archive but one (docs/fidelity.md,
+# "Representation by error").
+CHANNELS_BELOW_CM_HZ = 1.5
+CHANNELS_BELOW_VERTEX_CM_HZ = 12.0

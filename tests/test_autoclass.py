@@ -100,12 +100,13 @@ def ClipStats_accumulator(rows):
 def short_clips(shared_data):
     """Three short walks (subject 07) and three runs (09), in the codec's representation."""
     from mocapzip.archive import Settings
+    from mocapzip.archive.settings import checked
     from mocapzip.inputs.clip import load_clips
     from mocapzip.inputs.discover import find_clips
 
     cmu = shared_data / "cmu"
     paths = [cmu / "07" / f"07_{i:02d}.amc" for i in (1, 9, 10)] + [cmu / "09" / f"09_{i:02d}.amc" for i in (1, 2, 3)]
-    settings = Settings()
+    settings = checked(Settings())  # its representation as compress resolves it
     sources = find_clips(paths)
     try:
         clips = load_clips(sources, settings.representation, settings.axis_weight_cm)

@@ -101,7 +101,8 @@ def test_append_keeps_the_old_clips_and_holds_the_new_to_their_bounds(original, 
     assert {path: both[path] for path in old} == old
     with Archive(bigger) as opened:
         settings = opened.settings
-        assert [c["clips"] for c in opened.meta["classes"]] == [4, 2]  # the new clips: a class of their own
+        # coded in class 09 the new clips measure more bytes than in a class of their own with its basis
+        assert [c["clips"] for c in opened.meta["classes"]] == [4, 2]
         assert len(opened.meta["skeletons"]) == 2  # 09.asf once: the same entry and text
     for name in NEW["09"]:
         row, source = both[f"09/{name}"], shared_data / "cmu/09" / name
@@ -109,6 +110,62 @@ def test_append_keeps_the_old_clips_and_holds_the_new_to_their_bounds(original, 
         assert errors.mean() <= settings.error_cm and errors.max() <= settings.max_error_cm
         assert errors.mean() == pytest.approx(row["error_cm"], abs=1e-6)  # the row says what the file achieves
         assert errors.max() == pytest.approx(row["max_error_cm"], abs=1e-6)
+
+
+def test_a_clip_a_stored_class_explains_is_coded_in_that_class(original, tmp_path, shared_data):
+    """09_02 appended again, under another folder: class 09's basis was fitted to it, so coded there
+    it takes fewer bytes than in a class of its own, with that class's basis; no class is added."""
+    again = linked(tmp_path / "new", shared_data, {"09": ["09_02.amc"]})
+    bigger = tmp_path / "b.mcz"
+    summary = mocapzip.append(original, again / "09", bigger, under="again", jobs=2, progress=False)
+    assert summary["added"] == summary["in_stored_classes"] == ["again/09_02.amc"]
+    before, after = files(original, tmp_path / "a"), files(bigger, tmp_path / "b")
+    assert {path: after[path] for path in before} == before
+    old, both = rows(original), rows(bigger)
+    assert {path: both[path] for path in old} == old
+    with Archive(original) as a, Archive(bigger) as b:
+        counts = [c["clips"] for c in a.meta["classes"]]
+        counts[old["09/09_02.amc"]["class"]] += 1
+        assert [c["clips"] for c in b.meta["classes"]] == counts  # no class added
+        assert [c["name"] for c in b.meta["classes"]] == [c["name"] for c in a.meta["classes"]]
+        assert all(b.stream(f"class/{k:04d}") == a.stream(f"class/{k:04d}") for k in range(len(counts)))
+    row = both["again/09_02.amc"]
+    assert row["class"] == old["09/09_02.amc"]["class"]
+    assert run("remove", bigger, "again/*", "-o", tmp_path / "again.mcz", "-q").exit_code == 0
+    assert (tmp_path / "again.mcz").read_bytes() == original.read_bytes()  # its class recounted as it was
+    source = shared_data / "cmu/09"
+    errors = joint_errors(source / "09_02.amc", tmp_path / "b/again/09_02.amc", source / "09.asf")
+    assert errors.mean() <= PRIMED.error_cm and errors.max() <= PRIMED.max_error_cm
+    assert errors.mean() == pytest.approx(row["error_cm"], abs=1e-6)
+    assert errors.max() == pytest.approx(row["max_error_cm"], abs=1e-6)
+
+
+def test_a_clip_no_stored_class_fits_gets_a_class_of_its_own(original, tmp_path, shared_data):
+    """A BVH clip of another skeleton, whose poses no stored basis has the width of: a new class."""
+    new, name = tmp_path / "new", "dataset-1_run_normal_001.bvh"
+    new.mkdir()
+    (new / name).symlink_to(shared_data / "bvh-bandai" / name)
+    bigger = tmp_path / "b.mcz"
+    summary = mocapzip.append(original, new, bigger, jobs=2, progress=False)
+    assert summary["added"] == [name] and summary["in_stored_classes"] == []
+    with Archive(original) as a, Archive(bigger) as b:
+        classes = len(a.meta["classes"])
+        assert [c["clips"] for c in b.meta["classes"]] == [c["clips"] for c in a.meta["classes"]] + [1]
+    assert rows(bigger)[name]["class"] == classes
+    before, after = files(original, tmp_path / "a"), files(bigger, tmp_path / "b")
+    assert {path: after[path] for path in before} == before
+
+
+def test_segmented_takes_are_appended_in_classes_of_their_own(shared_data, tmp_path):
+    """--segment: a take's segments are joined across their classes, so none goes to a stored one,
+    even the take its class was fitted to."""
+    archive, bigger = tmp_path / "seg.mcz", tmp_path / "b.mcz"
+    compress([linked(tmp_path / "src", shared_data, {"09": ["09_02.amc"]})], archive, Settings(segment=True), jobs=2)
+    again = linked(tmp_path / "new", shared_data, {"09": ["09_02.amc"]})
+    summary = mocapzip.append(archive, again / "09", bigger, under="again", jobs=2, progress=False)
+    assert summary["in_stored_classes"] == []
+    with Archive(archive) as a, Archive(bigger) as b:
+        assert len(b.meta["classes"]) == 2 * len(a.meta["classes"])
 
 
 def test_appended_clips_decode_as_compressed_alone(appended, tmp_path):

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from mocapzip.archive.settings import Settings
+from mocapzip.archive.settings import Settings, checked
 from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.clip_stream import reconstruct
 from mocapzip.codec.pca import CovarianceAccumulator, PcaBasis
@@ -19,7 +19,7 @@ from mocapzip.stages import get_stage
 @pytest.fixture(scope="module")
 def subject(shared_data):
     """cmu/09 (runs): its clips and a 30-component class basis stored as the codec stores it."""
-    settings = Settings()
+    settings = checked(Settings())  # its representation as compress resolves it
     clips = load_clips(find_clips([shared_data / "cmu" / "09"]), settings.representation, settings.axis_weight_cm,
                        settings.axes_from_positions)
     accumulator = CovarianceAccumulator(clips[0].poses.shape[1])

@@ -3,8 +3,10 @@ every clip it keeps copied as they are (so each decodes to the same bytes and ke
 errors), and only the indices that name rows, classes and skeletons renumbered (docs/editing.md).
 
 Appended clips are coded by compress's passes with the archive's settings, as classes of their own,
-and their clip streams coded again from the archive's priors (coefficient coder "primed"): the same
-coefficients, so their rows' errors hold. The new archive is written as compress writes one
+and each also in the stored class nearest it (`passes.stored_classes`); a clip stays in the stored
+class where that measures fewer bytes (`_cheaper_in_stored`). Their clip streams are coded again
+from the archive's priors (coefficient coder "primed"): the same coefficients, so their rows'
+errors hold. The new archive is written as compress writes one
 (`formats.mcz.ArchiveWriter`: streams parked in an unnamed spool, the file built under a temporary
 name and renamed over the target), so the old one is intact until the new one is complete.
 """
@@ -14,7 +16,7 @@ from __future__ import annotations
 import copy
 import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import PurePosixPath
 from typing import Callable
 
@@ -22,11 +24,13 @@ from mocapzip import __version__
 from mocapzip.archive.meta import class_counts
 from mocapzip.archive.reader import Archive, path_matches
 from mocapzip.archive.passes.check import check
-from mocapzip.archive.passes.class_coding import code_classes
-from mocapzip.archive.passes.classes import classes_of
+from mocapzip.archive.passes.class_coding import ClassRecord, CodedClasses, clip_record, code_classes
+from mocapzip.archive.passes.classes import Classes, classes_of
 from mocapzip.archive.passes.entropy_pass import StoredClips
 from mocapzip.archive.passes.first_pass import first_pass
+from mocapzip.archive.passes.stored_classes import code_in_stored
 from mocapzip.archive.passes.write import assemble, commit
+from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.entropy.priors import INTERIM_CODER, primed_streams
 from mocapzip.defaults import DEFAULT_CACHE_MB
 from mocapzip.formats.errors import MocapFormatError
@@ -43,6 +47,7 @@ class _Part:
     texts: list[bytes]  # its skeletons' texts
     read: Callable[[str], bytes]  # its streams by name
     rows: list[int]  # the rows kept, in order
+    shared: dict[int, int] = field(default_factory=dict)  # its classes that are the archive's: their numbers there
 
 
 @one_blas_thread
@@ -93,16 +98,81 @@ def append(archive_path, inputs, output=None, force: bool = False, jobs: int = 1
             plan, target = job.settings.class_plan(), job.settings.coding_target()
             clips = first_pass(job, reader, job.settings.clip_reading(), plan, staged, jobs)
             classes = classes_of(clips, reader, plan, target, jobs)
+            found = None
+            if not (plan.lossless or plan.segment or plan.modes is not None):  # whole clips, PCA classes alone
+                bases = [ClassBasis.decode(old.stream(f"class/{k:04d}")) for k in range(len(old.meta["classes"]))]
+                found = code_in_stored(list(classes.units), bases, reader, target, jobs)
             coded = code_classes(clips, classes, reader, plan, target, jobs)
-            streams = coded.interim
-            if old.priors is not None:
-                streams = primed_streams(coded.interim, old.priors, jobs)
+            streams = _stored(coded.interim, old, jobs)
+            shared = {}
+            if found is not None and any(found):
+                classes, coded, streams, shared = _cheaper_in_stored(classes, coded, streams, found, old, jobs)
             added, texts, _ = assemble(job, clips, classes, coded, StoredClips(old.settings.coefficient_coder, streams),
                                        staged)
             size = _written([_old_part(old, range(len(old.clips))),
-                             _Part(added, texts, staged.read, list(range(len(added["clips"]))))], old, new)
+                             _Part(added, texts, staged.read, list(range(len(added["clips"]))), shared)], old, new)
     return {"output": output, "added": [row["path"] for row in added["clips"]], "clips": len(old.clips) + len(added["clips"]),
+            "in_stored_classes": [row["path"] for row in added["clips"] if row["class"] in shared],
             "output_bytes": size, "seconds": time.perf_counter() - started}
+
+
+def _stored(interim: dict[str, bytes], old: Archive, jobs: int) -> dict[str, bytes]:
+    """Clip streams as rate control coded them, as the archive stores them: primed from its priors if it has them."""
+    return interim if old.priors is None else primed_streams(interim, old.priors, jobs)
+
+
+def _cheaper_in_stored(classes: Classes, coded: CodedClasses, streams: dict[str, bytes], found: list, old: Archive,
+                       jobs: int) -> tuple[Classes, CodedClasses, dict[str, bytes], dict[int, int]]:
+    """The appended clips moved to the stored classes `found` (per clip: (class, coding) or None)
+    where that measures fewer bytes as stored; (classes, coded, stored streams, the classes that
+    are the archive's by their number here).
+
+    Per new class: all its clips moved and its basis dropped, if each has a stored class and their
+    bytes there are at most the basis's and theirs in it; else each clip moved whose bytes in its
+    stored class are fewer than in the new one (the new class keeps its basis for the others:
+    their codings were measured with it)."""
+    interim = {f"clip/{i:05d}": f[1].payload for i, f in enumerate(found) if f is not None}
+    moved = _stored(interim, old, jobs)
+
+    def there(i: int) -> int:  # clip i's bytes in its stored class
+        return len(moved[f"clip/{i:05d}"]) + found[i][1].patch_bytes + found[i][1].stance_bytes
+
+    def here(i: int) -> int:  # clip i's bytes in its new class
+        return sum(len(part.get(f"{kind}/{i:05d}", b"")) for part, kind in
+                   ((streams, "clip"), (coded.streams, "patch"), (coded.streams, "plant")))
+
+    members_of = [sorted({classes.units[u].clip for u in classes.members(g)}) for g in range(len(classes.names))]
+    chosen = set()
+    for g, members in enumerate(members_of):
+        cheaper = {i for i in members if found[i] is not None and there(i) < here(i)}
+        mixed = len(coded.streams[f"class/{g:04d}"]) + sum(there(i) if i in cheaper else here(i) for i in members)
+        if all(found[i] is not None for i in members) and sum(there(i) for i in members) <= mixed:
+            cheaper = set(members)
+        chosen |= cheaper
+    kept = [g for g in range(len(classes.names)) if set(members_of[g]) - chosen]
+    borrowed = sorted({found[i][0] for i in chosen})
+    number = {g: n for n, g in enumerate(kept)} | {("stored", k): len(kept) + j for j, k in enumerate(borrowed)}
+
+    def class_of(clip: int, g: int) -> int:
+        return number["stored", found[clip][0]] if clip in chosen else number[g]
+
+    classes = replace(classes, names=tuple(classes.names[g] for g in kept) +
+                      tuple(old.meta["classes"][k]["name"] for k in borrowed),
+                      unit_class=tuple(class_of(unit.clip, g) for unit, g in zip(classes.units, classes.unit_class)),
+                      clip_class=tuple(class_of(i, g) for i, g in enumerate(classes.clip_class)))
+    kept_streams = {name: data for name, data in coded.streams.items() if not name.startswith("class/")
+                    and int(name.rsplit("/", 1)[1]) not in chosen}  # patch/, plant/ of the clips that stay
+    kept_streams |= {f"class/{number[g]:04d}": coded.streams[f"class/{g:04d}"] for g in kept}
+    records = list(coded.clips)
+    for i in sorted(chosen):
+        coding = found[i][1]
+        records[i] = clip_record(i, coding.achieved, coding.patches, coding.stances, coding.twists, kept_streams)
+    stored_classes = tuple(ClassRecord(old.meta["classes"][k]["name"], old.meta["classes"][k]["components"], 0, 0)
+                           for k in borrowed)  # counted again as the archive is written (`_written`)
+    coded = CodedClasses(tuple(coded.classes[g] for g in kept) + stored_classes, tuple(records), kept_streams,
+                         coded.interim | {f"clip/{i:05d}": interim[f"clip/{i:05d}"] for i in chosen})
+    streams = streams | {f"clip/{i:05d}": moved[f"clip/{i:05d}"] for i in chosen}
+    return classes, coded, streams, {len(kept) + j: k for j, k in enumerate(borrowed)}
 
 
 def _opened(archive_path) -> Archive:
@@ -177,9 +247,9 @@ def _copy_part(part: _Part, meta: dict, texts: list[bytes], new: ArchiveWriter) 
             same = len(texts) - 1
         skeleton_of[k] = same
     lossless = meta["settings"]["lossless"]
-    class_of = {}
+    class_of = dict(part.shared)  # the archive's own classes, which its part put first under their numbers
     if not lossless:
-        for k in sorted({part_row["class"] for row in rows for part_row in row.get("segments", [row])}):
+        for k in sorted({part_row["class"] for row in rows for part_row in row.get("segments", [row])} - set(class_of)):
             class_of[k] = len(meta["classes"])
             meta["classes"].append(copy.deepcopy(part.meta["classes"][k]))
             new.add(f"class/{class_of[k]:04d}", part.read(f"class/{k:04d}"))

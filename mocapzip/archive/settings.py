@@ -8,7 +8,8 @@ from dataclasses import dataclass, field, replace
 
 from mocapzip.classes.modes import compiled_modes
 from mocapzip.classes.plan import ClassPlan
-from mocapzip.defaults import ACL_SHELL_CM, DEFAULT_FPS
+from mocapzip.defaults import (ACL_SHELL_CM, AUTO_REPRESENTATION, CHANNELS_BELOW_CM_HZ, CHANNELS_BELOW_VERTEX_CM_HZ,
+                               DEFAULT_FPS)
 from mocapzip.inputs.clip import ClipReading
 from mocapzip.ratecontrol.target import Bounds, CodingTarget
 from mocapzip.stages import get_stage, stage_ids
@@ -37,7 +38,8 @@ class Settings:
     shell_cm: float = ACL_SHELL_CM
     repair_glitches: bool = False  # joints a source glitch throws off are left to the decoder, not held to the bounds
     plant_feet: bool = False  # the decoder holds the source's planted feet still (codec.foot_lock; format 9 on)
-    representation: str = "aligned"
+    # a registered representation, or "auto" (compress only): `chosen_representation`. Archives store the one used.
+    representation: str = AUTO_REPRESENTATION
     # the temporal transform (a registered stage's config): the DCT, with the first 8 columns of each
     # matrix coded by their ends (`codec.temporal.EdgeDctTransform`; format 13 on)
     transform: dict = field(default_factory=lambda: {"id": "dct-edges", "edge_columns": 8})
@@ -103,12 +105,27 @@ def written_coders() -> tuple[str, ...]:
     return (AUTO_CODER, *stage_ids("coefficient coder", written_only=True))
 
 
+def chosen_representation(settings: Settings) -> str:
+    """The representation compress uses: the one named, or for "auto" the smaller by measure at
+    the error and vertex bound asked for, relative to `fps` (`defaults.CHANNELS_BELOW_CM_HZ`;
+    clips whose files state another rate are judged at `fps` all the same; lossless archives name
+    "aligned", as before "auto", for a representation they do not use)."""
+    if settings.representation != AUTO_REPRESENTATION:
+        return settings.representation
+    vertex = math.inf if settings.vertex_error_cm is None else settings.vertex_error_cm
+    tight = not settings.lossless and (settings.error_cm * settings.fps < CHANNELS_BELOW_CM_HZ
+                                       or vertex * settings.fps < CHANNELS_BELOW_VERTEX_CM_HZ)
+    return "channels" if tight else "aligned"
+
+
 def checked(settings: Settings) -> Settings:
     """`settings` with the transform's config as its stage writes it (pywt takes 'DB4' for
     'db4'; readers check the name), or SettingsError for an unknown stage, a number that is not
-    finite, or a coder only old formats wrote (format 1's "zstd": read, never written)."""
+    finite, or a coder only old formats wrote (format 1's "zstd": read, never written); a
+    representation of "auto" resolved (`chosen_representation`)."""
     from mocapzip.formats.mcz import FORMAT_VERSION
 
+    settings = replace(settings, representation=chosen_representation(settings))
     if settings.coefficient_coder not in written_coders():
         raise SettingsError(f"coefficient_coder {settings.coefficient_coder!r} is not written by format "
                             f"{FORMAT_VERSION}; choose one of {', '.join(written_coders())}")

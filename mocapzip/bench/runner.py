@@ -68,7 +68,7 @@ import numpy as np
 from mocapzip import __version__
 from mocapzip.classes.by_name import read_class_table
 from mocapzip.cli.choices import contact_error_cm, max_error_cm
-from mocapzip.defaults import ACL_SHELL_CM, BLAS_THREAD_VARIABLES, DEFAULT_FPS
+from mocapzip.defaults import ACL_SHELL_CM, AUTO_REPRESENTATION, BLAS_THREAD_VARIABLES, DEFAULT_FPS
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.inputs.discover import ClipSource, find_clips, no_clips
 from mocapzip.progress import progress
@@ -90,7 +90,7 @@ class BenchError(MocapFormatError):
 class BenchOptions:
     inputs: list
     errors: list = field(default_factory=lambda: [1.0])
-    representations: list = field(default_factory=lambda: ["aligned"])
+    representations: list = field(default_factory=lambda: [AUTO_REPRESENTATION])
     transforms: list = field(default_factory=lambda: ["dct-edges"])
     classes: list = field(default_factory=lambda: ["pooled"])
     splits: list = field(default_factory=lambda: [None])
@@ -538,6 +538,7 @@ def _mcz_label(task: dict, options: BenchOptions | None = None) -> str:
 def _run_mcz_without_pca(task: dict, clips: list[Clip], reader, options: BenchOptions) -> dict:
     """--classes none: each clip coded with the codec's stages and an identity basis (see the module doc)."""
     from mocapzip.archive import Settings
+    from mocapzip.archive.settings import chosen_representation
     from mocapzip.codec.basis import ClassBasis
     from mocapzip.codec.clip_stream import CodedClip, reconstruct
     from mocapzip.formats.amc import Motion, format_amc, parse_amc
@@ -550,13 +551,14 @@ def _run_mcz_without_pca(task: dict, clips: list[Clip], reader, options: BenchOp
 
     transform = get_stage("transform", _transform_config(task["transform"], options.wavelet))
     dead_zone, axes_from_positions = Settings().dead_zone, Settings().axes_from_positions
+    used = chosen_representation(Settings(error_cm=task["error_cm"], representation=task["representation"]))
     rows, distances = [], {}
     encode_seconds = decode_seconds = 0.0
     for clip in progress(clips, desc="no PCA", unit="clip"):
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            loaded = load_clips([clip.source], task["representation"], axes_from_positions=axes_from_positions,
+            loaded = load_clips([clip.source], used, axes_from_positions=axes_from_positions,
                                 units=options.units)[0]
         basis = ClassBasis(np.zeros(loaded.poses.shape[1]), np.eye(loaded.poses.shape[1]), np.ones(loaded.poses.shape[1]))
         coding = code_clip(loaded, basis, transform, task["error_cm"], dead_zone, task["split"])
@@ -865,7 +867,7 @@ def command_line(options: BenchOptions) -> str:
 
     args = ["mcz", "bench", *map(os.fspath, options.inputs)]
     for flag, values, default in (("-e", [f"{e:g}" for e in options.errors], ["1"]),
-                                  ("-r", options.representations, ["aligned"]),
+                                  ("-r", options.representations, [AUTO_REPRESENTATION]),
                                   ("-t", options.transforms, ["dct-edges"]), ("-c", options.classes, ["pooled"]),
                                   ("--split", [",".join(f"{x:g}" for x in s) for s in options.splits if s], [])):
         if list(values) != default:

@@ -222,11 +222,18 @@ class ClassCoding:
 
 
 def _code_clip(index: int) -> ClassCoding:
-    """The clip coded with the class basis, its foot lock (target.plant_feet), and what it achieves;
-    with a bound on single joints (target.bounds), at the mean aim that needs the fewest bytes with
-    its patches (`max_error.smallest_within`)."""
-    target, clip, transform, basis = _SHARED["target"], _SHARED["clips"][index], _SHARED["transform"], _SHARED["basis"]
-    step, band, scale = _SHARED["starts"][index] or (None, None, None)
+    """The clip coded with the class basis (`coded_within`), from its estimate's start if any."""
+    return coded_within(_SHARED["clips"][index], _SHARED["basis"], _SHARED["transform"], _SHARED["target"],
+                        _SHARED["starts"][index])
+
+
+def coded_within(clip, basis: ClassBasis, transform, target: CodingTarget,
+                 start: tuple[float, float, float] | None = None) -> ClassCoding:
+    """The clip coded with `basis`, its foot lock (target.plant_feet), and what it achieves; with a
+    bound on single joints (target.bounds), at the mean aim that needs the fewest bytes with its
+    patches (`max_error.smallest_within`). `start`: (step, band, proxy factor) of an estimate.
+    Its achieved mean may exceed the target where the basis cannot meet it (the caller checks)."""
+    step, band, scale = start or (None, None, None)
 
     def coded_at(aim: float) -> ClassCoding:
         start = (step, band) if aim == target.error_cm and step is not None else None  # what was estimated

@@ -10,4 +10,8 @@ function that takes and gives frozen records:
     entropy_pass.py  `entropy_pass` (lossy): the clip streams as stored, with the archive's priors where
                      they pay -> `StoredClips`
     write.py         `write`: meta assembled from the records, the skeletons stream, the archive committed -> `Written`
+
+and one `mcz append` (`archive.edit.append`) runs between the classes and the class coding:
+
+    stored_classes.py  `code_in_stored`: each new clip coded in the archive's stored class nearest it
 """

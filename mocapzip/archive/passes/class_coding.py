@@ -139,7 +139,7 @@ def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, plan: C
                         tensor_at = coding.tensor.at[j]
                         streams[f"warp/{unit.clip:05d}"] = coding.tensor.moves[j]
                     interim[f"clip/{unit.clip:05d}"] = unit_coding.payload
-                    rows[unit.clip] = _clip_record(unit.clip, unit_coding.achieved, unit_coding.patches,
+                    rows[unit.clip] = clip_record(unit.clip, unit_coding.achieved, unit_coding.patches,
                                                    unit_coding.stances, unit_coding.twists, streams, tensor_at)
                     reader.forget([unit.source])
                 bar.update(class_work.frames)
@@ -152,7 +152,7 @@ def code_classes(clips: ClipsRead, classes: Classes, reader: ClipReader, plan: C
                              [unit.load(reader) for unit in units], transform, target)
         names = [f"clip/{clip:05d}/{s:03d}" for s in range(len(parts))]
         interim.update(zip(names, joined.streams))
-        rows[clip] = _clip_record(clip, joined.achieved, joined.patches, None, joined.twists, streams,
+        rows[clip] = clip_record(clip, joined.achieved, joined.patches, None, joined.twists, streams,
                                   segments=tuple(SegmentRecord(unit.first, unit.frames, k, name, error)
                                                  for unit, (_, k, _), name, error
                                                  in zip(units, parts, names, joined.errors)))
@@ -169,7 +169,7 @@ def _class_record(name: str, work: _ClassWork, coding: _ClassCoding, tensor: boo
     return ClassRecord(name, coding.basis.q, clips, work.frames, "tensor", work.grid)
 
 
-def _clip_record(clip: int, achieved: Achieved, patches: FramePatches | None, stances: Stances | None,
+def clip_record(clip: int, achieved: Achieved, patches: FramePatches | None, stances: Stances | None,
                  twist_flips: dict, streams: dict[str, bytes], tensor_at: tuple[int, ...] | None = None,
                  segments: tuple[SegmentRecord, ...] = ()) -> ClipRecord:
     """A clip's record; its frame patches and its foot lock's stances, if any, go to `streams` as
