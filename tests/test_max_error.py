@@ -66,7 +66,10 @@ def test_a_clip_with_a_source_glitch_comes_back_within_the_bound(shared_data, tm
     ry = source.values[:, column], written.values[:, column]
     flipped = np.abs(ry[0] - np.median(ry[0])) > 90
     assert 0 < flipped.sum() < 20
-    np.testing.assert_allclose(ry[1][flipped], ry[0][flipped], atol=3.0)  # the flip, kept
+    # the flip, kept: its joints are within the bound (above), so its angle is near the source's,
+    # not the clip's usual one (a patch takes the least change, not the source's value)
+    assert np.all(np.abs(ry[1][flipped] - np.median(ry[0])) > 90)
+    np.testing.assert_allclose(ry[1][flipped], ry[0][flipped], atol=10.0)
 
 
 @pytest.mark.parametrize("error, bound", [("1", 10.0), ("0.5", 5.0)])
