@@ -7,7 +7,7 @@ representation, "auto" (`archive.settings.chosen_representation`; docs/fidelity.
 
 The clips are benchmarks/acl.py's (`--clips` spread over the shared CMU set, every 120/fps-th
 frame written as ASF/AMC); each is compressed with both representations at every -e, with no
-joint bound (`none`), the default one (10 x -e) or every vertex within K x -e and no joint bound
+joint bound (`none`), the default one (5 x -e) or every vertex within K x -e and no joint bound
 (`vertex:K`). Prints a markdown table of the archives' bytes and what "auto" picks.
 """
 
@@ -48,7 +48,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--fps", type=int, default=24, help="a divisor of 120 (default 24)")
     parser.add_argument("--clips", type=int, default=20)
-    parser.add_argument("--bound", default="none", help="none, default (10 x -e) or vertex:K (K x -e)")
+    parser.add_argument("--bound", default="none", help="none, default (5 x -e) or vertex:K (K x -e)")
     parser.add_argument("-e", "--errors", default="0.2,0.1,0.07,0.05,0.03,0.02")
     parser.add_argument("-j", "--jobs", type=int, default=1)
     args = parser.parse_args(argv)

@@ -514,7 +514,7 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
     frames, bytes, achieved errors.
 
     `error`: each clip's mean joint error bound in cm. `max_error`: the bound on every joint of
-    every frame in cm (not given: 10 x `error`, as the command line; None: no bound).
+    every frame in cm (not given: 5 x `error`, as the command line; None: no bound).
     `contact_error`: the bound on planted foot joints. `max_vertex_error`: the bound on every shell
     vertex of every frame, ACL's metric (`shell_cm=` sets their distance from the bone, 3 by
     default; docs/fidelity.md). `lossless`: every AMC value back exactly

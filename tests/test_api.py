@@ -81,7 +81,7 @@ def test_compress_takes_the_command_line_defaults(shared_data, tmp_path):
     asf = clip.with_name("09.asf")
     summary = mocapzip.compress([asf, clip], tmp_path / "a.mcz", error=2.0)
     with mocapzip.open(tmp_path / "a.mcz") as archive:
-        assert archive.settings.error_cm == 2.0 and archive.settings.max_error_cm == 20.0  # 10 x error
+        assert archive.settings.error_cm == 2.0 and archive.settings.max_error_cm == 10.0  # 5 x error
         assert archive[0].error.mean_cm == summary["largest_mean_error_cm"] <= 2.0
     mocapzip.compress([asf, clip], tmp_path / "a.mcz", error=2.0, max_error=None, representation="positions",
                       force=True)

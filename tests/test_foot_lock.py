@@ -162,7 +162,7 @@ def test_planted_feet_slide_no_more_than_in_the_source(walks):
 
 
 def test_the_bounds_hold_with_the_lock(walks):
-    """The mean stays within -e and every joint within --max-error (10 x -e), on the written files,
+    """The mean stays within -e and every joint within --max-error (5 x -e), on the written files,
     and each row's errors are those of its written file."""
     folder, model, made = walks
     archive, out = made["planted"]

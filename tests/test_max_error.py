@@ -72,8 +72,8 @@ def test_a_clip_with_a_source_glitch_comes_back_within_the_bound(shared_data, tm
     np.testing.assert_allclose(ry[1][flipped], ry[0][flipped], atol=10.0)
 
 
-@pytest.mark.parametrize("error, bound", [("1", 10.0), ("0.5", 5.0)])
-def test_the_default_bound_is_ten_times_the_mean_target(shared_data, tmp_path, error, bound):
+@pytest.mark.parametrize("error, bound", [("1", 5.0), ("0.5", 2.5)])
+def test_the_default_bound_is_five_times_the_mean_target(shared_data, tmp_path, error, bound):
     archive = tmp_path / "default.mcz"
     assert run("compress", shared_data / "cmu" / "07" / "07_01.amc", "-o", archive, "-q", "-e", error).exit_code == 0
     with Archive(archive) as opened:

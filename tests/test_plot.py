@@ -164,7 +164,7 @@ def test_a_failure_writes_nothing(archives, tmp_path, shared_data):
 
 
 def test_a_ratio_distortion_sweep_joins_its_error_targets_into_one_curve():
-    """`mcz bench -e 1 -e 0.5 --plot`: each target's bound on every joint (10 x -e) was part of the
+    """`mcz bench -e 1 -e 0.5 --plot`: each target's bound on every joint (5 x -e) was part of the
     curve's name, so every point was a curve of its own."""
     options = BenchOptions(inputs=[])
     task = {"representation": "aligned", "transform": "dct", "classes": "pooled", "split": None}
