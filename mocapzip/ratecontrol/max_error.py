@@ -190,14 +190,16 @@ def _least_corrections(tail, values, original, free, held, steps, exact, limit, 
     delta = np.zeros_like(values)
     weight = np.repeat(held.astype(np.float64), 3, axis=1)  # (P, 3J)
     probe = 1e-3
+    frame_of, channel_of = np.nonzero(free)  # a channel not free in its frame needs no forward kinematics
     for _ in range(iterations):
         current = values + delta
         at = tail.positions(current).reshape(count, -1)
         residual = (original.reshape(count, -1) - at) * weight
-        shifted = np.repeat(current[:, None, :], width, axis=1)
-        shifted[:, np.arange(width), np.arange(width)] += probe * steps
-        moved = tail.positions(shifted.reshape(-1, width)).reshape(count, width, -1)
-        jacobian = (moved - at[:, None, :]) / probe * weight[:, None, :] * free[:, :, None]  # (P, C, 3J): per step
+        shifted = current[frame_of]
+        shifted[np.arange(len(frame_of)), channel_of] += (probe * steps)[channel_of]
+        moved = tail.positions(shifted).reshape(len(frame_of), -1)
+        jacobian = np.zeros((count, width, at.shape[1]))  # (P, C, 3J): per step
+        jacobian[frame_of, channel_of] = (moved - at[frame_of]) / probe * weight[frame_of]
         normal = jacobian @ jacobian.transpose(0, 2, 1) + 1e-2 * np.eye(width)
         change = np.linalg.solve(normal, (jacobian @ residual[:, :, None]))[:, :, 0]
         delta += change * steps * free
