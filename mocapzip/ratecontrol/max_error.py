@@ -186,7 +186,7 @@ def _least_corrections(tail, values, original, free, held, steps, exact, limit, 
     bits on both. A frame whose correction does not bring every joint within `limit` without
     raising its summed error keeps `exact`, which can always reach the source; the second array
     says which frames have their least change."""
-    count, width = values.shape
+    count = len(values)
     delta = np.zeros_like(values)
     weight = np.repeat(held.astype(np.float64), 3, axis=1)  # (P, 3J)
     probe = 1e-3
@@ -197,9 +197,7 @@ def _least_corrections(tail, values, original, free, held, steps, exact, limit, 
         at = tail.positions(current).reshape(count, -1)
         residual = (original.reshape(count, -1) - at) * weight
         for rows, cols in batches:  # a channel not free in a frame needs no forward kinematics nor a column
-            shifted = np.repeat(current[rows][:, None, :], len(cols), axis=1)
-            shifted[:, np.arange(len(cols)), cols] += probe * steps[cols]
-            moved = tail.positions(shifted.reshape(-1, width)).reshape(len(rows), len(cols), -1)
+            moved = tail.probed_positions(current[rows], cols, probe * steps[cols]).reshape(len(rows), len(cols), -1)
             jacobian = (moved - at[rows, None, :]) / probe * weight[rows, None, :]  # (rows, cols, 3J): per step
             normal = jacobian @ jacobian.transpose(0, 2, 1) + 1e-2 * np.eye(len(cols))
             change = np.linalg.solve(normal, jacobian @ residual[rows, :, None])[:, :, 0]
