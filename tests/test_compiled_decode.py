@@ -274,6 +274,20 @@ def test_forward_kinematics_matches_numpy(shared_data, name):
     assert clip.positions.shape == expected.shape
 
 
+@pytest.mark.parametrize("name", sorted(CLIPS))
+def test_probed_kinematics_are_the_full_kinematics_bit_for_bit(shared_data, name):
+    """The least patch's Jacobian makes again only the joints a moved column turns: its
+    positions must be those of the whole skeleton's kinematics exactly, or archive bytes move."""
+    clip = load(shared_data, name, "aligned", True, frames=40)
+    tail, values = clip.decode_tail, clip.motion.values[::4]
+    cols = np.array([0, 3, 5, tail.width // 2, tail.width - 1])
+    shifts = np.array([1e-3, -2e-3, 0.5, 1e-3, 7.0])
+    shifted = np.repeat(values[:, None, :], len(cols), axis=1)
+    shifted[:, np.arange(len(cols)), cols] += shifts
+    expected = tail.positions(shifted.reshape(-1, tail.width)).reshape(len(values), len(cols), -1, 3)
+    np.testing.assert_array_equal(tail.probed_positions(values, cols, shifts), expected)
+
+
 def test_rounding_as_written_matches_numpy():
     rng = np.random.default_rng(7)
     values = np.concatenate([rng.normal(0, 1, 4000) * 10.0 ** rng.integers(-6, 6, 4000),

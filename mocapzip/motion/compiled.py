@@ -938,6 +938,45 @@ def fk_positions(values, parents, link, vct, axis0, col_start, nchan, chan_kind,
 
 
 @njit(cache=True, nogil=True)
+def fk_probed(values, cols, shifts, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis, to_rad,
+              cm_per_unit):
+    """fk_positions of each frame of `values` (F, C) with column cols[k] moved by shifts[k]: (F, K, J, 3),
+    bit for bit. Only the column's joint and its descendants are made again: no other joint reads it."""
+    F = values.shape[0]
+    J = parents.shape[0]
+    K = cols.shape[0]
+    out = np.empty((F, K, J, 3))
+    every = np.arange(J)
+    W = np.empty((J, 3, 3))
+    pos = np.empty((J, 3))
+    Wk = np.empty((J, 3, 3))
+    row = np.empty((1, values.shape[1]))
+    below = np.empty(J, dtype=np.bool_)
+    owner = np.full(values.shape[1], -1)  # the joint that reads each column
+    for j in range(J):
+        if col_start[j] >= 0:
+            for k in range(nchan[j]):
+                owner[col_start[j] + k] = j
+    subtrees = []
+    for k in range(K):  # parents come before children
+        top = owner[cols[k]]
+        for j in range(J):
+            below[j] = j == top or (j > top and parents[j] >= 0 and below[parents[j]])
+        subtrees.append(np.flatnonzero(below))
+    for f in range(F):
+        _fk_frame(values, f, every, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                  to_rad, cm_per_unit, W, pos)
+        for k in range(K):
+            row[0, :] = values[f, :]
+            row[0, cols[k]] = values[f, cols[k]] + shifts[k]
+            Wk[:, :, :] = W
+            out[f, k] = pos
+            _fk_frame(row, 0, subtrees[k], parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
+                      to_rad, cm_per_unit, Wk, out[f, k])
+    return out
+
+
+@njit(cache=True, nogil=True)
 def fk_joint_distances(values, original, parents, link, vct, axis0, col_start, nchan, chan_kind, chan_axis,
                        to_rad, cm_per_unit):
     """metrics.joint_distances of fk_positions(values) and `original`: (F, J) cm."""

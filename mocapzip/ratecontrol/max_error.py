@@ -186,21 +186,22 @@ def _least_corrections(tail, values, original, free, held, steps, exact, limit, 
     bits on both. A frame whose correction does not bring every joint within `limit` without
     raising its summed error keeps `exact`, which can always reach the source; the second array
     says which frames have their least change."""
-    count, width = values.shape
+    count = len(values)
     delta = np.zeros_like(values)
     weight = np.repeat(held.astype(np.float64), 3, axis=1)  # (P, 3J)
     probe = 1e-3
+    masks, group = np.unique(free, axis=0, return_inverse=True)  # frames with the same free channels: one batch
+    batches = [(np.flatnonzero(group.ravel() == g), np.flatnonzero(mask)) for g, mask in enumerate(masks) if mask.any()]
     for _ in range(iterations):
         current = values + delta
         at = tail.positions(current).reshape(count, -1)
         residual = (original.reshape(count, -1) - at) * weight
-        shifted = np.repeat(current[:, None, :], width, axis=1)
-        shifted[:, np.arange(width), np.arange(width)] += probe * steps
-        moved = tail.positions(shifted.reshape(-1, width)).reshape(count, width, -1)
-        jacobian = (moved - at[:, None, :]) / probe * weight[:, None, :] * free[:, :, None]  # (P, C, 3J): per step
-        normal = jacobian @ jacobian.transpose(0, 2, 1) + 1e-2 * np.eye(width)
-        change = np.linalg.solve(normal, (jacobian @ residual[:, :, None]))[:, :, 0]
-        delta += change * steps * free
+        for rows, cols in batches:  # a channel not free in a frame needs no forward kinematics nor a column
+            moved = tail.probed_positions(current[rows], cols, probe * steps[cols]).reshape(len(rows), len(cols), -1)
+            jacobian = (moved - at[rows, None, :]) / probe * weight[rows, None, :]  # (rows, cols, 3J): per step
+            normal = jacobian @ jacobian.transpose(0, 2, 1) + 1e-2 * np.eye(len(cols))
+            change = np.linalg.solve(normal, jacobian @ residual[rows, :, None])[:, :, 0]
+            delta[np.ix_(rows, cols)] += change * steps[cols]
     after = tail.joint_distances(values + delta, original)
     good = np.all(after <= limit, axis=1) & ((after * held).sum(axis=1) <= (before * held).sum(axis=1))
     return np.where(good[:, None], delta, exact), good

@@ -87,6 +87,12 @@ class ChannelTables:
         """Forward kinematics of channel `values`: joint positions (F, J, 3) in cm."""
         return compiled.fk_positions(np.ascontiguousarray(values, dtype=np.float64), *self.fk_tables())
 
+    def probed_positions(self, values: np.ndarray, cols: np.ndarray, shifts: np.ndarray) -> np.ndarray:
+        """`positions` (F, K, J, 3) of each frame with column cols[k] moved by shifts[k], bit for bit
+        as `positions` of those frames: finite differences, only the moved joints made again."""
+        return compiled.fk_probed(np.ascontiguousarray(values, dtype=np.float64), np.asarray(cols, np.int64),
+                                  np.asarray(shifts, np.float64), *self.fk_tables())
+
     def error(self, values: np.ndarray, original_positions: np.ndarray) -> tuple[float, float]:
         """(mean, max) distance in cm between the joints of channel `values` and `original_positions`."""
         return compiled.fk_distances(np.ascontiguousarray(values, dtype=np.float64),
