@@ -34,10 +34,9 @@ SETS = {"bandai": DATA / "bvh-bandai", "cmu": DATA / "cmu"}
 EDGE = 2  # frames at each end
 
 
-def edge_errors(archive: Path, folder: Path) -> dict:
-    """Per clip of `archive` (compressed from `folder`): its edge ratio, whether its worst joint is at an
-    edge, and its first and last frames' mean error against the clip's."""
-    ratios, at_edge, first, last = [], 0, [], []
+def joint_errors(archive: Path, folder: Path):
+    """Yield (clip, (frames, joints) cm) for each clip of `archive`, compressed from `folder`: each
+    joint of each frame, decoded through the API, against the source's."""
     with mocapzip.open(archive) as opened, warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # a source cut short mid-frame: dropped, as compress did
         for path in opened.paths:
@@ -46,14 +45,21 @@ def edge_errors(archive: Path, folder: Path) -> dict:
                 original = mocapzip.bvh_joint_positions(mocapzip.read_bvh(folder / path))
             else:
                 original = mocapzip.joint_positions(clip.skeleton, mocapzip.read_amc(folder / path, clip.skeleton))
-            distances = np.linalg.norm(clip.positions() - original, axis=-1)
-            per_frame = distances.mean(axis=1)
-            mean = per_frame.mean()
-            ratios.append(np.r_[per_frame[:EDGE], per_frame[-EDGE:]].mean() / mean)
-            first.append(per_frame[0] / mean)
-            last.append(per_frame[-1] / mean)
-            worst = np.unravel_index(distances.argmax(), distances.shape)[0]
-            at_edge += worst < EDGE or worst >= len(per_frame) - EDGE
+            yield clip, np.linalg.norm(clip.positions() - original, axis=-1)
+
+
+def edge_errors(archive: Path, folder: Path) -> dict:
+    """Per clip of `archive` (compressed from `folder`): its edge ratio, whether its worst joint is at an
+    edge, and its first and last frames' mean error against the clip's."""
+    ratios, at_edge, first, last = [], 0, [], []
+    for _, distances in joint_errors(archive, folder):
+        per_frame = distances.mean(axis=1)
+        mean = per_frame.mean()
+        ratios.append(np.r_[per_frame[:EDGE], per_frame[-EDGE:]].mean() / mean)
+        first.append(per_frame[0] / mean)
+        last.append(per_frame[-1] / mean)
+        worst = np.unravel_index(distances.argmax(), distances.shape)[0]
+        at_edge += worst < EDGE or worst >= len(per_frame) - EDGE
     return {"clips": len(ratios), "edge": float(np.median(ratios)), "at_edge": at_edge,
             "first": float(np.median(first)), "last": float(np.median(last))}
 

@@ -30,20 +30,7 @@ import numpy as np  # noqa: E402
 import mocapzip  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).parent))
-from clip_edges import SETS  # noqa: E402
-
-
-def joint_errors(archive: Path, folder: Path):
-    """Yield (joint names, (frames, joints) cm) per clip of `archive`, compressed from `folder`."""
-    with mocapzip.open(archive) as opened, warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # a source cut short mid-frame: dropped, as compress did
-        for path in opened.paths:
-            clip = opened[path]
-            if clip.format == "bvh":
-                original = mocapzip.bvh_joint_positions(mocapzip.read_bvh(folder / path))
-            else:
-                original = mocapzip.joint_positions(clip.skeleton, mocapzip.read_amc(folder / path, clip.skeleton))
-            yield clip.joint_names, np.linalg.norm(clip.positions() - original, axis=-1)
+from clip_edges import SETS, joint_errors  # noqa: E402
 
 
 def main(argv=None) -> None:
@@ -64,8 +51,8 @@ def main(argv=None) -> None:
         archive = Path(scratch) / "x.mcz"
         summary = mocapzip.compress(folder, archive, error=args.error, max_error=None,
                                     transform={"id": args.transform}, jobs=args.jobs)
-        for names, errors in joint_errors(archive, folder):
-            for j, name in enumerate(names):
+        for clip, errors in joint_errors(archive, folder):
+            for j, name in enumerate(clip.joint_names):
                 per_joint.setdefault(name, []).append(errors[:, j])
             over = np.any(errors > args.beyond, axis=1)
             frames, beyond = frames + len(over), beyond + int(over.sum())
