@@ -110,7 +110,7 @@ def _text_row(name: str, s: dict) -> str:
 
 def series_name(run: dict) -> str:
     """The curve a run's point is on: its codec and settings but the error target and the bound on
-    every joint, which follows the target (10 x -e by default), so that a sweep's -e 1 and -e 0.5 join."""
+    every joint, which follows the target (5 x -e by default), so that a sweep's -e 1 and -e 0.5 join."""
     if run["codec"] == "hou":
         return "Hou et al. 2015 (best L, k, Q per clip)"
     if run["codec"] == "hou-shared":

@@ -99,7 +99,7 @@ class BenchOptions:
     groups: str | None = None  # table clip -> motion class for the per-class report
     jobs: int = 1
     wavelet: str = "db4"
-    max_error: float | str | None = None  # --max-error: a bound in cm, "none", or None for compress's default (10 x -e)
+    max_error: float | str | None = None  # --max-error: a bound in cm, "none", or None for compress's default (5 x -e)
     contact_error: float | str | None = None  # --contact-error: a bound in cm, "none", or None for compress's default
     plant_feet: bool = False  # --plant-feet: the decoder holds planted feet still (codec.foot_lock)
     hou_grid: dict | None = None  # override of hou.GRID_L/K/Q (tests, quick runs)

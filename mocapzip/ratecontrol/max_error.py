@@ -4,11 +4,12 @@
 The coding searched before this bounds the clip's mean error. Here its decode is scored per
 joint and frame, end to end through the written AMC values, and each frame with a joint
 further than the bound gets a patch: a correction of the channels that move those joints,
-the least that puts the frame's joints back (`_least_corrections`), at the coarsest level (step max_error, halved per level) that brings every joint of the
-frame within the bound without raising the frame's summed error (so the clip's mean, already
-within `-e`, cannot rise; with --repair-glitches the glitch's joints are left out of both, and
-`smallest_within` codes the clip finer should its mean rise). Frames are independent once decoded to channels, so each is
-settled on its own.
+the least that puts the frame's joints back (`_least_corrections`), at the coarsest level (step
+COARSEST x max_error, halved per level) that brings every joint of the frame within the bound
+without raising the frame's summed error (so the clip's mean, already within `-e`, cannot
+rise; with --repair-glitches the glitch's joints are left out of both, and `smallest_within`
+codes the clip finer should its mean rise). Frames are independent once decoded to channels,
+so each is settled on its own.
 
 Patching only the frames that need it measured cheaper than a finer coding of the whole
 clip: the frames over a few cm come in short runs (at -e 1, a median 5 frames beyond 3 cm;
@@ -190,7 +191,7 @@ def _least_corrections(tail, values, original, free, held, steps, exact, limit, 
     count = len(values)
     delta = np.zeros_like(values)
     weight = np.repeat(held.astype(np.float64), 3, axis=1)  # (P, 3J)
-    probe = 1e-3
+    probe = 1e-3  # of a step: far below where forward kinematics bends, far above float rounding
     masks, group = np.unique(free, axis=0, return_inverse=True)  # frames with the same free channels: one batch
     batches = [(np.flatnonzero(group.ravel() == g), np.flatnonzero(mask)) for g, mask in enumerate(masks) if mask.any()]
     for _ in range(iterations):
@@ -200,6 +201,7 @@ def _least_corrections(tail, values, original, free, held, steps, exact, limit, 
         for rows, cols in batches:  # a channel not free in a frame needs no forward kinematics nor a column
             moved = tail.probed_positions(current[rows], cols, probe * steps[cols]).reshape(len(rows), len(cols), -1)
             jacobian = (moved - at[rows, None, :]) / probe * weight[rows, None, :]  # (rows, cols, 3J): per step
+            # damped: a channel no joint sees (a twist, another Euler branch) stays where it was
             normal = jacobian @ jacobian.transpose(0, 2, 1) + 1e-2 * np.eye(len(cols))
             change = np.linalg.solve(normal, jacobian @ residual[rows, :, None])[:, :, 0]
             delta[np.ix_(rows, cols)] += change * steps[cols]
