@@ -34,8 +34,8 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
 def skeleton_path(clip, data: Path) -> Path | None:
-    if clip.asf is not None:
-        return clip.asf
+    if clip.skeleton is not None:
+        return clip.skeleton
     parts = Path(clip.relpath).parts
     if parts[0] == "cmu-edited":
         candidate = data / "cmu" / parts[1] / f"{parts[1]}.asf"
@@ -63,7 +63,7 @@ def main() -> None:
         model = models[asf]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a cut-short last frame is dropped by the reader
-            motion = read_amc(clip.amc)
+            motion = read_amc(clip.motion)
         motion.values = motion.values[:: args.step]
         n_clips += 1
         n_frames += motion.n_frames

@@ -89,7 +89,7 @@ def run(data: Path, subset: str, log=print) -> dict:
 
     folder = data / subset
     sources = find_clips([folder])
-    files = sorted({s.amc for s in sources} | {s.asf for s in sources})
+    files = sorted({s.motion for s in sources} | {s.skeleton for s in sources})
     megabytes = sum(f.stat().st_size for f in files) / 1e6
     load_start = os.getloadavg()
     rows = []
