@@ -114,10 +114,19 @@ def main(argv=None) -> int:
 
     command = "python benchmarks/make_docs.py" + ("" if argv is None and len(sys.argv) == 1 else
                                                   " " + shlex.join(sys.argv[1:] if argv is None else argv))
-    page = render(command, git, elapsed, rd, sm, sp, tt, fc, head, RULES, log_lines, data)
+    page = portable(render(command, git, elapsed, rd, sm, sp, tt, fc, head, RULES, log_lines, data), data, args.work)
     (args.docs / "benchmarks.md").write_text(page + kept(args.docs / "benchmarks.md"))
     print(f"wrote {args.docs / 'benchmarks.md'}", file=sys.stderr)
     return 0
+
+
+def portable(page: str, data: Path, work: Path) -> str:
+    """`page` with this machine's paths as the page names them: the data folder as `$DATA`, the
+    reports' as `$WORK`, the repository's files relative to it (commands anyone can rerun)."""
+    for path, shown in ((work, "$WORK"), (data, "$DATA"), (REPO, ".")):
+        for spelled in {str(path), str(path.resolve())}:
+            page = page.replace(spelled + "/", shown + "/" if shown != "." else "").replace(spelled, shown)
+    return page
 
 
 KEPT = "<!-- Kept by benchmarks/make_docs.py"
@@ -146,7 +155,7 @@ def render(command, git, elapsed, rd, sm, sp, tt, fc, head, rules, log_lines, da
            f"(load average {env['load_average_start'][0]:.1f} when the whole-set run started), one BLAS thread per "
            f"process. Data: the shared real data set (`$DATA/cmu`, `$DATA` = `../shared/data`; CMU, 120 Hz; never copied into "
            "the repository). "
-           "Raw reports (JSON, CSV) are written to `--work`; `mcz bench` produces the same report for any input.", "",
+           "Raw reports (JSON, CSV) are written to `--work` (`$WORK`); `mcz bench` produces the same report for any input.", "",
            "## Summary", ""]
     h = head
     for e in errors:
