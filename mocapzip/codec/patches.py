@@ -89,15 +89,17 @@ class FramePatches:
             values[frame] += ints * frame_steps(steps, self.step_cm, int(level))
 
 
+def rotation_channels(model: SkeletonModel, layout: ChannelLayout) -> np.ndarray:
+    """(C,) whether each channel of `layout` is a rotation (else a translation)."""
+    return np.array([channel.startswith("r") for bone, count in zip(layout.bones, layout.counts)
+                     for channel in model.channels[model.index[bone]][:count]], bool)
+
+
 def channel_steps(model: SkeletonModel, layout: ChannelLayout) -> np.ndarray:
     """(C,) each channel's patch step for a step of 1 cm: 1 cm in the file's length unit for
     translations, 1 / LEVER_CM radians in the clip's angle unit for rotations."""
     to_unit = 180.0 / math.pi if layout.angle_unit == "deg" else 1.0
-    steps = []
-    for bone, count in zip(layout.bones, layout.counts):
-        for channel in model.channels[model.index[bone]][:count]:
-            steps.append(to_unit / LEVER_CM if channel.startswith("r") else 1.0 / model.cm_per_unit)
-    return np.array(steps, np.float64)
+    return np.where(rotation_channels(model, layout), to_unit / LEVER_CM, 1.0 / model.cm_per_unit)
 
 
 def frame_steps(steps: np.ndarray, step_cm: float, level: int) -> np.ndarray:

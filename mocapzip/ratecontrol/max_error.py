@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapzip.codec.patches import MAX_LEVEL, FramePatches, channel_steps, frame_steps
+from mocapzip.codec.patches import MAX_LEVEL, FramePatches, channel_steps, frame_steps, rotation_channels
 from mocapzip.codec.quantise import UniformQuantiser
 from mocapzip.formats.errors import MocapFormatError
 from mocapzip.formats.text import MAX_ABS_VALUE, in_value_range
@@ -172,10 +172,8 @@ def achieved(clip, check, bounds: Bounds = Bounds()) -> tuple[Achieved, FramePat
 def _turns_removed(residual: np.ndarray, clip) -> np.ndarray:
     """`residual` less the whole turns in its rotation channels: an angle and that angle plus 360
     degrees turn a bone alike, and sources store angles up to 990 degrees (cmu/01/01_09)."""
-    layout, model = clip.layout, clip.model
-    turn = 360.0 if layout.angle_unit == "deg" else 2 * np.pi
-    rotations = np.array([channel.startswith("r") for bone, count in zip(layout.bones, layout.counts)
-                          for channel in model.channels[model.index[bone]][:count]], bool)
+    turn = 360.0 if clip.layout.angle_unit == "deg" else 2 * np.pi
+    rotations = rotation_channels(clip.model, clip.layout)
     residual[:, rotations] -= turn * np.round(residual[:, rotations] / turn)
     return residual
 
