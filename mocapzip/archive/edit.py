@@ -30,7 +30,6 @@ from mocapzip.archive.passes.entropy_pass import StoredClips
 from mocapzip.archive.passes.first_pass import first_pass
 from mocapzip.archive.passes.stored_classes import code_in_stored
 from mocapzip.archive.passes.write import assemble, commit
-from mocapzip.codec.basis import ClassBasis
 from mocapzip.codec.entropy.priors import INTERIM_CODER, primed_streams
 from mocapzip.defaults import DEFAULT_CACHE_MB
 from mocapzip.formats.errors import MocapFormatError
@@ -100,7 +99,7 @@ def append(archive_path, inputs, output=None, force: bool = False, jobs: int = 1
             classes = classes_of(clips, reader, plan, target, jobs)
             found = None
             if not (plan.lossless or plan.segment or plan.modes is not None):  # whole clips, PCA classes alone
-                bases = [ClassBasis.decode(old.stream(f"class/{k:04d}")) for k in range(len(old.meta["classes"]))]
+                bases = [old.basis(k) for k in range(len(old.meta["classes"]))]
                 found = code_in_stored(list(classes.units), bases, reader, target, jobs)
             coded = code_classes(clips, classes, reader, plan, target, jobs)
             streams = _stored(coded.interim, old, jobs)

@@ -284,7 +284,7 @@ class Archive:
 
     def _reconstruct(self, stream: str, class_index: int, n_frames: int):
         """Weighted poses and root track of one coefficient stream (a clip, or a segment's coded frames)."""
-        basis = self._basis(class_index)
+        basis = self.basis(class_index)
         check_matrix_shape(n_frames, basis.mean.size)  # the decoded poses: bounded before they are made
         root_width = self.stages["representation"].root_width
         with_root = root_width > 0
@@ -341,7 +341,8 @@ class Archive:
                           self.settings.axis_weight_cm)
 
     @_built_once
-    def _basis(self, k: int) -> ClassBasis:
+    def basis(self, k: int) -> ClassBasis:
+        """Class k's basis as decoders use it (quantised), checked against meta; decoded once."""
         name = f"class/{k:04d}"
         try:
             basis = self._decode_class(self._reader.read(name))
