@@ -554,15 +554,24 @@ def compress(inputs: str | os.PathLike | Iterable[str | os.PathLike], output: st
                                    vertex_error_cm=max_vertex_error, lossless=lossless, classes=classes, **options)
     except TypeError as exc:  # a keyword that is no Settings field
         raise SettingsError(f"compress() takes no option {str(exc).rsplit(' ', 1)[-1]}") from None
-    inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
     if dask is not None:  # Dask's module only when asked for: it is an optional extra
         from mocapzip.cluster import on_cluster
-    jobs = (os.cpu_count() or 1) if jobs is None else jobs  # every core, as the command line
     from mocapzip.archive import writer  # the encoder's modules only when compressing: open() is faster without
 
     with nullcontext() if dask is None else on_cluster(dask) as cluster, _bars(progress):
-        return writer.compress([os.fspath(p) for p in inputs], output, chosen, asf=asf, force=force,
-                               jobs=jobs if cluster is None else cluster.workers, skip_bad=skip_bad, units=units)
+        return writer.compress(_input_paths(inputs), output, chosen, asf=asf, force=force,
+                               jobs=_every_core(jobs) if cluster is None else cluster.workers, skip_bad=skip_bad,
+                               units=units)
+
+
+def _input_paths(inputs: str | os.PathLike | Iterable[str | os.PathLike]) -> list[str]:
+    """`inputs` (one folder or file, or several) as the list of paths the command line passes."""
+    return [os.fspath(p) for p in ([inputs] if isinstance(inputs, (str, os.PathLike)) else inputs)]
+
+
+def _every_core(jobs: int | None) -> int:
+    """`jobs`, or every core where not given, as the command line's -j."""
+    return (os.cpu_count() or 1) if jobs is None else jobs
 
 
 def _bars(shown: bool):
@@ -621,8 +630,6 @@ def append(archive: str | os.PathLike, inputs: str | os.PathLike | Iterable[str 
     from mocapzip.archive import edit
 
     _edited_in_place(archive, output, force)
-    inputs = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
-    jobs = (os.cpu_count() or 1) if jobs is None else jobs
     with _bars(progress):
-        return edit.append(archive, [os.fspath(p) for p in inputs], output, force=force, jobs=jobs, under=under,
+        return edit.append(archive, _input_paths(inputs), output, force=force, jobs=_every_core(jobs), under=under,
                            asf=asf, units=units)
