@@ -43,7 +43,7 @@ def main(argv=None) -> None:
             summary = compress(args.inputs, path, settings, jobs=args.jobs)
             with Archive(path) as archive:
                 bases = sum(size for name, size in archive.stream_sizes().items() if name.startswith("class/"))
-                width = len(archive._basis(0).mean)
+                width = len(archive.basis(0).mean)
                 flipped = sum("twist_flips" in row for row in archive.clips)
         label = "all but solved bones'" if solved else "every bone's"
         mark = " (default)" if (solved, weight) == (default.axes_from_positions, default.axis_weight_cm) else ""

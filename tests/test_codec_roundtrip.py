@@ -117,7 +117,7 @@ def test_solved_bones_decode_with_the_twists_the_encoder_chose(shared_data, tmp_
     compress(inputs, tmp_path / "db.mcz", Settings(error_cm=1.0))
     model = SkeletonModel.from_asf(read_asf(shared_data / "cmu/64/64.asf"))
     with Archive(tmp_path / "db.mcz") as archive:
-        assert archive.settings.axes_from_positions and archive._basis(0).components.shape[0] == 129
+        assert archive.settings.axes_from_positions and archive.basis(0).components.shape[0] == 129
         for i, row in enumerate(archive.clips):
             assert set(row["twist_flips"]) == {"lthumb"}
             original = read_amc(shared_data / "cmu" / "64" / row["path"])
